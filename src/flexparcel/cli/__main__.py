@@ -1,0 +1,5 @@
+import sys
+
+from flexparcel.cli import main
+
+sys.exit(main())
