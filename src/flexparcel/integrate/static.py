@@ -1,0 +1,132 @@
+"""Static equilibrium by Newton-Raphson with adaptive load stepping.
+
+Solves ``f_int(q) = lambda f_ext(q)`` for load factors ``lambda`` = 1/k ... 1 (follower loads
+depend on q). Rotations are updated multiplicatively, ``R <- exp(dphi) R``, so the consistent
+tangent is the spin derivative from the element kernels plus the follower-load stiffness.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from flexparcel.elements.rotations import rotation_exp, rotation_log
+from flexparcel.integrate import assembly as asm
+from flexparcel.integrate.errors import ConvergenceError
+from flexparcel.integrate.linear import SingularMatrixError, make_linear_solver
+from flexparcel.model.builder import Model, State
+
+__all__ = ["StaticResult", "solve_static", "apply_increment"]
+
+
+@dataclass
+class StaticResult:
+    """Converged equilibrium states at each requested load factor."""
+
+    load_factors: np.ndarray
+    """Load factors, shape (k,)."""
+    displacements: np.ndarray
+    """Node displacements from the reference [m], shape (k, node_count, 3)."""
+    rotation_vectors: np.ndarray
+    """Nodal rotation vectors [rad], shape (k, node_count, 3) (|.| <= pi; use ``states``
+    for rotations beyond pi)."""
+    states: list[State]
+    newton_iterations: int
+
+
+def apply_increment(model: Model, state: State, dq_free: np.ndarray) -> None:
+    """Add a free-DOF increment: translations additively, rotations as spatial spins."""
+    dq = np.zeros(6 * model.node_count)
+    dq[model.free_index >= 0] = dq_free
+    dq = dq.reshape(-1, 6)
+    state.positions += dq[:, :3]
+    moved = np.flatnonzero(np.any(dq[:, 3:] != 0.0, axis=1))
+    for i in moved:
+        state.rotations[i] = rotation_exp(dq[i, 3:]) @ state.rotations[i]
+
+
+def _rotation_vectors(rot: np.ndarray) -> np.ndarray:
+    return np.array([rotation_log(r) for r in rot])
+
+
+def solve_static(
+    model: Model,
+    load_steps: int = 10,
+    *,
+    tol: float = 1e-8,
+    max_iterations: int = 25,
+    max_cuts: int = 8,
+    linear_solver: str = "superlu",
+    time: float = 0.0,
+) -> StaticResult:
+    """Equilibrium under all loads (gravity, nodal forces/moments at schedule time ``time``)
+    scaled by load factors ``i / load_steps``.
+
+    Convergence: the free residual norm below ``tol`` times the norm of the applied load (or of
+    the internal force if larger) and the increment norm below ``tol`` times the model size.
+    A load increment that does not converge is halved (up to ``max_cuts`` times).
+    """
+    if int(load_steps) != load_steps or load_steps < 1:
+        raise ValueError(f"solve_static: load_steps must be an integer >= 1, got {load_steps!r}")
+    solver = make_linear_solver(linear_solver)
+    state = model.initial_state()
+    span = float(np.ptp(model.positions0, axis=0).max())
+    zeros_v = np.zeros((model.node_count, 6))
+    targets = np.arange(1, int(load_steps) + 1) / load_steps
+    lam = 0.0
+    factors, states = [], []
+    total_iter = 0
+    for target in targets:
+        while lam < target - 1e-14:
+            dlam = target - lam
+            for _cut in range(max_cuts + 1):
+                trial = state.copy()
+                ok, it = _newton(model, trial, lam + dlam, time, tol, max_iterations, solver,
+                                 span, zeros_v)
+                total_iter += it
+                if ok:
+                    break
+                dlam *= 0.5
+            else:
+                raise ConvergenceError(
+                    f"static solve: no convergence at load factor {lam + dlam:.6g} "
+                    f"(step from {lam:.6g}) after {max_cuts} cuts; worst node "
+                    f"{getattr(trial, '_worst', -1)}"
+                )
+            state = trial
+            lam += dlam
+        factors.append(lam)
+        states.append(state.copy())
+    disp = np.array([s.positions - model.positions0 for s in states])
+    rv = np.array([_rotation_vectors(s.rotations) for s in states])
+    return StaticResult(np.array(factors), disp, rv, states, total_iter)
+
+
+def _newton(model, state, lam, time, tol, max_iterations, solver, span, zeros_v):
+    for it in range(1, max_iterations + 1):
+        fint, data, _ = asm.internal_forces_and_tangent(
+            model, state.positions, state.rotations, zeros_v, 0.0
+        )
+        fext = asm.external_forces(model, time, state.rotations, lam)
+        asm.add_follower_tangent(model, data, time, state.rotations, lam)
+        r = asm.free_vector(model, fint - fext)
+        if not np.all(np.isfinite(r)):
+            return False, it
+        scale = max(np.linalg.norm(asm.free_vector(model, fext)),
+                    np.linalg.norm(asm.free_vector(model, fint)), 1e-30)
+        try:
+            solver.factor(asm.csr_from_data(model, data))
+        except SingularMatrixError:
+            return False, it
+        dq = -solver.solve(r)
+        if not np.all(np.isfinite(dq)):
+            return False, it
+        apply_increment(model, state, dq)
+        rn = np.linalg.norm(r)
+        state._worst = int(np.argmax(np.abs(fint - fext).sum(axis=1)))
+        if rn <= tol * scale and np.abs(dq).max() <= tol * span * 10:
+            return True, it
+        if np.abs(dq).max() <= 1e-3 * tol * span:
+            return True, it
+    return False, max_iterations

@@ -1,0 +1,481 @@
+"""ModelBuilder -> Model (static arrays) and State (time-varying arrays).
+
+Every node carries 6 DOFs ``[x, y, z, spin_x, spin_y, spin_z]``: three translations [m] and a
+rotation (stored as a rotation matrix; variations are spatial spins [rad]).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flexparcel.elements import shell
+from flexparcel.model.materials import ShellMaterial
+from flexparcel.model.mesh import quads_to_triangles
+from flexparcel.model.schedule import Schedule
+
+__all__ = ["ModelBuilder", "Model", "State", "DOFS_PER_NODE"]
+
+DOFS_PER_NODE = 6
+_DOF_NAMES = {"x": 0, "y": 1, "z": 2, "rx": 3, "ry": 4, "rz": 5}
+_DOF_GROUPS = {"all": [0, 1, 2, 3, 4, 5], "translations": [0, 1, 2], "rotations": [3, 4, 5]}
+
+
+@dataclass
+class Model:
+    """Compiled, immutable model: flat arrays used by the kernels. Build it with ModelBuilder."""
+
+    positions0: np.ndarray
+    """Reference node positions [m], shape (node_count, 3)."""
+    triangles: np.ndarray
+    """Shell triangles used by the kernels (quads are split), shape (m, 3) int64."""
+    tri_kl: np.ndarray
+    """Local linear stiffness per triangle [SI], shape (m, 18, 18)."""
+    tri_xloc: np.ndarray
+    """Reference local centroidal corner coordinates [m], shape (m, 3, 2)."""
+    tri_frame0: np.ndarray
+    """Reference element frames, shape (m, 3, 3) (columns e1, e2, e3)."""
+    tri_beta: np.ndarray
+    """Rayleigh stiffness-proportional damping beta [s] per triangle, shape (m,)."""
+    mass: np.ndarray
+    """Lumped mass [kg] and rotational inertia [kg m^2] per DOF, shape (node_count, 6)."""
+    gravity: np.ndarray
+    """Gravitational acceleration [m/s^2], shape (3,)."""
+    fixed: np.ndarray
+    """True where a DOF is held at its reference value, shape (node_count, 6)."""
+    load_nodes: np.ndarray
+    """Node of each nodal load, shape (k,)."""
+    load_vectors: np.ndarray
+    """Force [N] or moment [N m] per node at factor 1, shape (k, 3)."""
+    load_is_moment: np.ndarray
+    """True for moments, shape (k,)."""
+    load_follower: np.ndarray
+    """True if the load rotates with its node, shape (k,)."""
+    load_schedule: np.ndarray
+    """Index into ``schedules`` per load, shape (k,)."""
+    schedules: list[Schedule]
+    gravity_schedule: Schedule
+    cells: list[tuple[str, np.ndarray]]
+    """The user's cells for output: ("quad", (q,4)) and/or ("triangle", (t,3))."""
+    # sparse pattern over the free DOFs
+    free_index: np.ndarray
+    """Free-DOF number of each DOF or -1 if fixed, shape (node_count * 6,)."""
+    csr_indptr: np.ndarray
+    csr_indices: np.ndarray
+    tri_emap: np.ndarray
+    """CSR data slot for each element matrix entry (trash slot nnz for fixed DOFs), (m,18,18)."""
+    load_emap: np.ndarray
+    """CSR data slots of the (translation|rotation rows, spin cols) 3x3 blocks of each load's
+    node, shape (k, 2, 3, 3); used for the follower-load stiffness."""
+    diag_slots: np.ndarray
+    """CSR data slot of each free DOF's diagonal, shape (free_count,)."""
+
+    @property
+    def node_count(self) -> int:
+        return self.positions0.shape[0]
+
+    @property
+    def dof_count(self) -> int:
+        """Number of unknowns (free DOFs)."""
+        return int(self.diag_slots.shape[0])
+
+    @property
+    def nnz(self) -> int:
+        return int(self.csr_indices.shape[0])
+
+    def initial_state(self) -> State:
+        n = self.node_count
+        return State(
+            time=0.0,
+            positions=self.positions0.copy(),
+            rotations=np.tile(np.eye(3), (n, 1, 1)),
+            velocities=np.zeros((n, 6)),
+            accelerations=np.zeros((n, 6)),
+        )
+
+    def total_mass(self) -> float:
+        """Total mass [kg]."""
+        return float(self.mass[:, 0].sum())
+
+
+@dataclass
+class State:
+    """Time-varying state. Angular quantities are spatial (world components)."""
+
+    time: float
+    positions: np.ndarray
+    """Node positions [m], shape (node_count, 3)."""
+    rotations: np.ndarray
+    """Nodal rotation matrices from the reference, shape (node_count, 3, 3)."""
+    velocities: np.ndarray
+    """[v (m/s), omega (rad/s)] per node, shape (node_count, 6)."""
+    accelerations: np.ndarray
+    """Algorithmic accelerations of the generalized-alpha scheme, shape (node_count, 6)."""
+
+    def copy(self) -> State:
+        return State(
+            self.time,
+            self.positions.copy(),
+            self.rotations.copy(),
+            self.velocities.copy(),
+            self.accelerations.copy(),
+        )
+
+
+@dataclass
+class _Load:
+    nodes: np.ndarray
+    vector: np.ndarray
+    is_moment: bool
+    follower: bool
+    schedule: Schedule
+
+
+@dataclass
+class ModelBuilder:
+    """Collects meshes, materials, supports and loads; ``finalize()`` validates and compiles.
+
+    Args:
+        gravity: gravitational acceleration [m/s^2], shape (3,).
+    """
+
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    gravity_schedule: Schedule = field(default_factory=Schedule.constant)
+    _points: list[np.ndarray] = field(default_factory=list, repr=False)
+    _tris: list[np.ndarray] = field(default_factory=list, repr=False)
+    _tri_w: list[np.ndarray] = field(default_factory=list, repr=False)
+    _tri_mat: list[ShellMaterial] = field(default_factory=list, repr=False)
+    _cells: dict = field(default_factory=dict, repr=False)
+    _fixed: dict = field(default_factory=dict, repr=False)
+    _loads: list[_Load] = field(default_factory=list, repr=False)
+    _node_count: int = 0
+
+    def __post_init__(self) -> None:
+        g = np.asarray(self.gravity, dtype=float)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise ValueError(f"ModelBuilder.gravity must be 3 finite numbers [m/s^2], got {g!r}")
+        self.gravity = tuple(g)
+
+    @property
+    def node_count(self) -> int:
+        return self._node_count
+
+    # ------------------------------------------------------------------ geometry
+    def add_shell_mesh(
+        self,
+        points: np.ndarray,
+        quads: np.ndarray | None = None,
+        *,
+        material: ShellMaterial,
+        triangles: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """Add a shell mesh; returns the global node ids (len(points),) of its points.
+
+        ``points`` [m] (n, 3); ``quads`` (q, 4) and/or ``triangles`` (t, 3) of local node ids,
+        counter-clockwise about the side the user calls +normal, consistently oriented.
+        """
+        if not isinstance(material, ShellMaterial):
+            raise TypeError("add_shell_mesh: material must be a ShellMaterial")
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 3 or pts.shape[0] < 3:
+            raise ValueError(f"add_shell_mesh: points must have shape (n>=3, 3), got {pts.shape}")
+        bad = np.flatnonzero(~np.all(np.isfinite(pts), axis=1))
+        if bad.size:
+            raise ValueError(f"add_shell_mesh: points[{bad[0]}] is not finite: {pts[bad[0]]}")
+        if quads is None and triangles is None:
+            raise ValueError("add_shell_mesh: give quads and/or triangles")
+        n = len(pts)
+        cells = []
+        tri_all, w_all = [], []
+        for name, conn, k in (("quads", quads, 4), ("triangles", triangles, 3)):
+            if conn is None:
+                continue
+            c = np.asarray(conn)
+            if c.ndim != 2 or c.shape[1] != k or c.shape[0] == 0:
+                raise ValueError(f"add_shell_mesh: {name} must have shape (m>=1, {k}), got {c.shape}")
+            if not np.issubdtype(c.dtype, np.integer):
+                raise ValueError(f"add_shell_mesh: {name} must be integers, got {c.dtype}")
+            c = c.astype(np.int64)
+            out = np.flatnonzero(np.any((c < 0) | (c >= n), axis=1))
+            if out.size:
+                raise ValueError(
+                    f"add_shell_mesh: {name}[{out[0]}] = {c[out[0]].tolist()} has node ids "
+                    f"outside [0, {n - 1}]"
+                )
+            srt = np.sort(c, axis=1)
+            rep = np.flatnonzero(np.any(srt[:, 1:] == srt[:, :-1], axis=1))
+            if rep.size:
+                raise ValueError(
+                    f"add_shell_mesh: {name}[{rep[0]}] = {c[rep[0]].tolist()} repeats a node "
+                    "(degenerate element)"
+                )
+            _, first, counts = np.unique(srt, axis=0, return_index=True, return_counts=True)
+            if np.any(counts > 1):
+                i = first[np.argmax(counts > 1)]
+                raise ValueError(f"add_shell_mesh: {name}[{i}] = {c[i].tolist()} is duplicated")
+            if k == 4:
+                t, w = quads_to_triangles(c)
+                cells.append(("quad", c))
+            else:
+                t, w = c, np.ones(len(c))
+                cells.append(("triangle", c))
+            # degenerate check on every sub-triangle, relative to the element size
+            p = pts[t]
+            e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+            area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+            h2 = np.maximum(np.sum(e1 * e1, axis=1), np.sum(e2 * e2, axis=1))
+            deg = np.flatnonzero(area2 <= 1e-8 * h2)
+            if deg.size:
+                j = deg[0] % len(c)
+                raise ValueError(
+                    f"add_shell_mesh: {name}[{j}] = {c[j].tolist()} is degenerate (zero area or "
+                    "collinear nodes); element areas must be > 0"
+                )
+            if k == 4:
+                # a convex, non-inverted quad has both diagonal splits oriented like the quad
+                m = len(c)
+                nrm = np.cross(e1, e2)
+                ref = nrm[:m] + nrm[m : 2 * m]
+                sgn = np.einsum("ij,kij->ki", ref, nrm.reshape(4, m, 3))
+                inv = np.flatnonzero(np.any(sgn <= 0, axis=0))
+                if inv.size:
+                    raise ValueError(
+                        f"add_shell_mesh: quads[{inv[0]}] = {c[inv[0]].tolist()} is inverted or "
+                        "non-convex (its corners must go counter-clockwise around a convex quad)"
+                    )
+            tri_all.append(t)
+            w_all.append(w)
+        tri = np.concatenate(tri_all)
+        _check_orientation([c for _, c in cells])
+        ids = np.arange(self._node_count, self._node_count + n)
+        self._points.append(pts)
+        self._tris.append(tri + self._node_count)
+        self._tri_w.append(np.concatenate(w_all))
+        self._tri_mat.append(material)
+        for cname, c in cells:
+            self._cells.setdefault(cname, []).append(c + self._node_count)
+        self._node_count += n
+        return ids
+
+    # ------------------------------------------------------------------ supports
+    def _check_ids(self, what: str, node_ids) -> np.ndarray:
+        ids = np.atleast_1d(np.asarray(node_ids))
+        if ids.size == 0:
+            raise ValueError(f"{what}: node_ids is empty")
+        if not np.issubdtype(ids.dtype, np.integer):
+            raise ValueError(f"{what}: node_ids must be integers, got {ids.dtype}")
+        bad = ids[(ids < 0) | (ids >= self._node_count)]
+        if bad.size:
+            raise ValueError(
+                f"{what}: node id {int(bad[0])} is outside [0, {self._node_count - 1}]"
+            )
+        return ids.astype(np.int64).ravel()
+
+    def fix(self, node_ids, dofs: str | list = "all") -> None:
+        """Hold DOFs at their reference values: "all", "translations", "rotations", or a list
+        of names from x, y, z, rx, ry, rz (or indices 0-5)."""
+        ids = self._check_ids("fix", node_ids)
+        if isinstance(dofs, str):
+            if dofs not in _DOF_GROUPS:
+                raise ValueError(
+                    f"fix: dofs must be one of {sorted(_DOF_GROUPS)} or a list of "
+                    f"{list(_DOF_NAMES)}, got {dofs!r}"
+                )
+            idx = _DOF_GROUPS[dofs]
+        else:
+            idx = []
+            for d in dofs:
+                if isinstance(d, str) and d in _DOF_NAMES:
+                    idx.append(_DOF_NAMES[d])
+                elif isinstance(d, int | np.integer) and 0 <= d < 6:
+                    idx.append(int(d))
+                else:
+                    raise ValueError(f"fix: unknown DOF {d!r}; allowed {list(_DOF_NAMES)} or 0-5")
+        for n in ids:
+            self._fixed.setdefault(int(n), set()).update(idx)
+
+    def clamp(self, node_ids) -> None:
+        """Built-in support: no displacement and no rotation."""
+        self.fix(node_ids, "all")
+
+    # ------------------------------------------------------------------ loads
+    def _add_load(self, what, node_ids, vector, is_moment, follower, schedule) -> None:
+        ids = self._check_ids(what, node_ids)
+        v = np.asarray(vector, dtype=float)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise ValueError(f"{what}: vector must be 3 finite numbers, got {vector!r}")
+        sched = schedule if schedule is not None else Schedule.constant()
+        if not isinstance(sched, Schedule):
+            raise TypeError(f"{what}: schedule must be a Schedule")
+        self._loads.append(_Load(ids, v, is_moment, bool(follower), sched))
+
+    def add_force(self, node_ids, force, *, follower: bool = False, schedule=None) -> None:
+        """Force [N] applied to each node (total per node), dead unless ``follower``."""
+        self._add_load("add_force", node_ids, force, False, follower, schedule)
+
+    def add_moment(self, node_ids, moment, *, follower: bool = False, schedule=None) -> None:
+        """Moment [N m] applied to each node; a follower moment rotates with the node."""
+        self._add_load("add_moment", node_ids, moment, True, follower, schedule)
+
+    # ------------------------------------------------------------------ compile
+    def finalize(self) -> Model:
+        """Validate, compute element data, the lumped mass and the sparse pattern."""
+        if not self._points:
+            raise ValueError("ModelBuilder.finalize: no mesh was added")
+        pos0 = np.concatenate(self._points)
+        n = len(pos0)
+        tris, kls, xls, frs, betas, ws = [], [], [], [], [], []
+        mass = np.zeros((n, 6))
+        for tri, w, mat in zip(self._tris, self._tri_w, self._tri_mat, strict=True):
+            frames, xloc = shell.reference_frames(pos0, tri)
+            kl = np.empty((len(tri), 18, 18))
+            for e in range(len(tri)):
+                kl[e] = w[e] * shell.local_stiffness(
+                    xloc[e], mat.youngs_modulus, mat.poisson_ratio, mat.thickness
+                )
+            area = 0.5 * np.abs(
+                (xloc[:, 1, 0] - xloc[:, 0, 0]) * (xloc[:, 2, 1] - xloc[:, 0, 1])
+                - (xloc[:, 2, 0] - xloc[:, 0, 0]) * (xloc[:, 1, 1] - xloc[:, 0, 1])
+            )
+            # lumped mass: a third of each triangle's mass to each corner; isotropic rotational
+            # inertia rho t^3/12 per area (the plate's, also used for the drilling axis)
+            m_node = mat.density * mat.thickness * area * w / 3.0
+            j_node = mat.density * mat.thickness**3 / 12.0 * area * w / 3.0
+            for a in range(3):
+                np.add.at(mass[:, 0], tri[:, a], m_node)
+                np.add.at(mass[:, 3], tri[:, a], j_node)
+            tris.append(tri)
+            kls.append(kl)
+            xls.append(xloc)
+            frs.append(frames)
+            betas.append(np.full(len(tri), mat.damping_ratio))
+            ws.append(w)
+        mass[:, 1] = mass[:, 2] = mass[:, 0]
+        mass[:, 4] = mass[:, 5] = mass[:, 3]
+        triangles = np.concatenate(tris)
+        orphan = np.setdiff1d(np.arange(n), np.unique(triangles))
+        if orphan.size:
+            raise ValueError(f"finalize: node {int(orphan[0])} belongs to no element")
+        fixed = np.zeros((n, 6), dtype=bool)
+        for node, dofs in self._fixed.items():
+            fixed[node, sorted(dofs)] = True
+        loads = self._loads
+        schedules: list[Schedule] = []
+        ln, lv, lm, lf, ls = [], [], [], [], []
+        for ld in loads:
+            if ld.schedule not in schedules:
+                schedules.append(ld.schedule)
+            si = schedules.index(ld.schedule)
+            for node in ld.nodes:
+                block = slice(3, 6) if ld.is_moment else slice(0, 3)
+                held = fixed[node, block] & (ld.vector != 0.0)
+                if ld.follower and np.any(fixed[node, block]) and np.any(ld.vector != 0.0):
+                    held = fixed[node, block]
+                if np.any(held):
+                    kind = "moment" if ld.is_moment else "force"
+                    raise ValueError(
+                        f"{kind} on node {int(node)} acts on a fixed DOF "
+                        f"({'rx ry rz' if ld.is_moment else 'x y z'} fixed = "
+                        f"{fixed[node, block].tolist()}): remove the load or the support"
+                    )
+                ln.append(node)
+                lv.append(ld.vector)
+                lm.append(ld.is_moment)
+                lf.append(ld.follower)
+                ls.append(si)
+        free_index = np.full(6 * n, -1, dtype=np.int64)
+        free = np.flatnonzero(~fixed.ravel())
+        if free.size == 0:
+            raise ValueError("finalize: every DOF is fixed; nothing to solve")
+        free_index[free] = np.arange(free.size)
+        indptr, indices, emap, load_emap, diag = _sparsity(
+            triangles, free_index, free.size, np.asarray(ln, dtype=np.int64)
+        )
+        cells = [(k, np.concatenate(v)) for k, v in self._cells.items()]
+        return Model(
+            positions0=pos0,
+            triangles=triangles,
+            tri_kl=np.concatenate(kls),
+            tri_xloc=np.concatenate(xls),
+            tri_frame0=np.concatenate(frs),
+            tri_beta=np.concatenate(betas),
+            mass=mass,
+            gravity=np.asarray(self.gravity, dtype=float),
+            fixed=fixed,
+            load_nodes=np.asarray(ln, dtype=np.int64),
+            load_vectors=np.asarray(lv, dtype=float).reshape(-1, 3),
+            load_is_moment=np.asarray(lm, dtype=bool),
+            load_follower=np.asarray(lf, dtype=bool),
+            load_schedule=np.asarray(ls, dtype=np.int64),
+            schedules=schedules,
+            gravity_schedule=self.gravity_schedule,
+            cells=cells,
+            free_index=free_index,
+            csr_indptr=indptr,
+            csr_indices=indices,
+            tri_emap=emap,
+            load_emap=load_emap,
+            diag_slots=diag,
+        )
+
+
+def _check_orientation(cells: list[np.ndarray]) -> None:
+    """Within one mesh, an edge shared by two elements must be traversed in opposite directions
+    (consistent normals); the same directed edge twice means one of them is inverted."""
+    edges, owner = [], []
+    for c in cells:
+        k = c.shape[1]
+        for a in range(k):
+            edges.append(c[:, [a, (a + 1) % k]])
+            owner.append(c)
+    e = np.concatenate(edges)
+    elem = np.concatenate([o for o in owner])
+    keys, first, counts = np.unique(e, axis=0, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        a, b = keys[np.argmax(counts > 1)]
+        idx = np.flatnonzero((e[:, 0] == a) & (e[:, 1] == b))
+        raise ValueError(
+            f"add_shell_mesh: elements {elem[idx[0]].tolist()} and {elem[idx[1]].tolist()} run "
+            f"along edge ({a}, {b}) in the same direction: one of them is inverted (normals "
+            "must be consistently oriented)"
+        )
+
+
+def _sparsity(triangles, free_index, nfree, load_nodes):
+    """CSR pattern over the free DOFs and the data-slot maps; slot ``nnz`` is a trash slot."""
+    m = len(triangles)
+    dofs = (6 * triangles[:, :, None] + np.arange(6)).reshape(m, 18)
+    fd = free_index[dofs]  # (m, 18)
+    rows = np.repeat(fd, 18, axis=1).reshape(m, 18, 18)
+    cols = np.tile(fd, (1, 18)).reshape(m, 18, 18)
+    ok = (rows >= 0) & (cols >= 0)
+    keys = rows[ok] * nfree + cols[ok]
+    # every free DOF gets a diagonal entry
+    keys = np.concatenate([keys, np.arange(nfree) * (nfree + 1)])
+    uniq, inv = np.unique(keys, return_inverse=True)
+    nnz = uniq.size
+    emap = np.full((m, 18, 18), nnz, dtype=np.int64)
+    emap[ok] = inv[: ok.sum()]
+    r = uniq // nfree
+    indices = (uniq % nfree).astype(np.int64)
+    indptr = np.zeros(nfree + 1, dtype=np.int64)
+    np.add.at(indptr, r + 1, 1)
+    indptr = np.cumsum(indptr)
+    diag = np.searchsorted(uniq, np.arange(nfree) * (nfree + 1))
+
+    def slot(i, j):
+        if i < 0 or j < 0:
+            return nnz
+        k = np.searchsorted(uniq, i * nfree + j)
+        return int(k) if k < nnz and uniq[k] == i * nfree + j else nnz
+
+    load_emap = np.full((len(load_nodes), 2, 3, 3), nnz, dtype=np.int64)
+    for k, node in enumerate(load_nodes):
+        for blk in range(2):
+            for i in range(3):
+                for j in range(3):
+                    load_emap[k, blk, i, j] = slot(
+                        free_index[6 * node + 3 * blk + i], free_index[6 * node + 3 + j]
+                    )
+    return indptr, indices, emap, load_emap, diag

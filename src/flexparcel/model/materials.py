@@ -1,0 +1,63 @@
+"""Material data with validation. SI units throughout."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["ShellMaterial"]
+
+
+def _check_finite(owner: str, name: str, value: float) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{owner}.{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class ShellMaterial:
+    """Isotropic linear-elastic shell material (small strain, used in the co-rotated frame).
+
+    Attributes:
+        youngs_modulus: Young's modulus E [Pa], > 0.
+        poisson_ratio: Poisson's ratio nu [-], 0 <= nu < 0.5.
+        density: mass density rho [kg/m^3], > 0.
+        thickness: shell thickness t [m], > 0.
+        damping_ratio: RecurDyn's FFlex "Damping Ratio", the stiffness-proportional Rayleigh
+            coefficient beta [s] in C = beta * K (mass-proportional term zero). It is NOT a
+            fraction of critical damping: mode i is damped with zeta_i = beta * omega_i / 2.
+    """
+
+    youngs_modulus: float
+    poisson_ratio: float
+    density: float
+    thickness: float
+    damping_ratio: float = 0.0
+
+    def __post_init__(self) -> None:
+        name = "ShellMaterial"
+        e = _check_finite(name, "youngs_modulus", self.youngs_modulus)
+        nu = _check_finite(name, "poisson_ratio", self.poisson_ratio)
+        rho = _check_finite(name, "density", self.density)
+        t = _check_finite(name, "thickness", self.thickness)
+        beta = _check_finite(name, "damping_ratio", self.damping_ratio)
+        if e <= 0:
+            raise ValueError(f"{name}.youngs_modulus must be > 0 Pa, got {e!r}")
+        if not 0.0 <= nu < 0.5:
+            raise ValueError(f"{name}.poisson_ratio must be in [0, 0.5), got {nu!r}")
+        if rho <= 0:
+            raise ValueError(f"{name}.density must be > 0 kg/m^3, got {rho!r}")
+        if t <= 0:
+            raise ValueError(f"{name}.thickness must be > 0 m, got {t!r}")
+        if beta < 0:
+            raise ValueError(f"{name}.damping_ratio (Rayleigh beta) must be >= 0 s, got {beta!r}")
+
+    @property
+    def bending_stiffness(self) -> float:
+        """Plate bending stiffness D = E t^3 / (12 (1 - nu^2)) [N m]."""
+        e, nu, t = self.youngs_modulus, self.poisson_ratio, self.thickness
+        return e * t**3 / (12.0 * (1.0 - nu * nu))
