@@ -1,0 +1,251 @@
+"""Implicit dynamics: generalized-alpha on the Lie group R^3 x SO(3) of each node.
+
+Scheme (Chung & Hulbert 1993, in the form of Arnold & Bruls 2007, Multibody Syst Dyn 18:185, and
+its Lie-group extension, Bruls & Cardona 2010, J Comput Nonlinear Dyn 5:031002):
+
+    M qdd_{n+1} + f_int(q_{n+1}, v_{n+1}) = f_ext(t_{n+1}, q_{n+1})
+    (1 - am) a_{n+1} + am a_n = (1 - af) qdd_{n+1} + af qdd_n
+    dq = h v_n + h^2 (1/2 - beta) a_n + h^2 beta a_{n+1}
+    v_{n+1} = v_n + h (1 - gamma) a_n + h gamma a_{n+1}
+
+with ``x_{n+1} = x_n + dq_x`` and ``R_{n+1} = exp(dq_rot) R_n`` (spatial increment; the nodal
+inertia is isotropic, so the spatial and material forms coincide and there is no gyroscopic term).
+Parameters from the spectral radius at infinity ``rho_inf``:
+``am = (2 rho - 1)/(rho + 1)``, ``af = rho/(rho + 1)``, ``gamma = 1/2 + af - am``,
+``beta = (gamma + 1/2)^2 / 4``: second order accurate, unconditionally stable for linear
+problems, and dissipating the (heavily Rayleigh-damped, beta*K) high modes instead of ringing.
+
+Newton works on spatial spin corrections with the element kernels' consistent tangent
+``S = c_a M + K_t + c_v C`` with ``c_a = (1 - am)/((1 - af) beta h^2)``, ``c_v = gamma/(beta h)``.
+Terms of order |dq_rot| from the SO(3) tangent map in the inertia and damping blocks are left out
+(they vanish as h -> 0); the factorisation is reused across iterations and steps while Newton
+contracts well (modified Newton), and rebuilt when it does not.
+
+Step size: the local error estimate of Newmark-type schemes (Zienkiewicz & Xie 1991,
+Earthquake Eng Struct Dyn 20:871), ``e = h^2 |beta - 1/6| |qdd_{n+1} - qdd_n|`` on translations,
+kept below ``tol_displacement``; rejected steps are retried smaller, and a Newton failure halves
+the step. Below ``dt_min`` the run stops with :class:`ConvergenceError`.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flexparcel.elements.rotations import rotation_exp, rotation_log
+from flexparcel.integrate import assembly as asm
+from flexparcel.integrate.errors import ConvergenceError
+from flexparcel.integrate.linear import SingularMatrixError, make_linear_solver
+from flexparcel.model.builder import Model, State
+
+__all__ = ["IntegratorOptions", "Stats", "GeneralizedAlpha"]
+
+
+@dataclass
+class IntegratorOptions:
+    """Settings of the implicit integrator (SI units)."""
+
+    rho_inf: float = 0.8
+    """Spectral radius at infinite step (1: no numerical dissipation, trapezoidal rule)."""
+    dt_initial: float = 1e-3
+    dt_min: float = 1e-7
+    dt_max: float = 5e-3
+    adaptive: bool = True
+    tol_displacement: float = 2e-5
+    """Local error tolerance per step on node displacements [m]."""
+    newton_tol: float = 1e-3
+    """Newton stops when its estimated remaining error is below newton_tol * tol_displacement
+    (and the rotation correction times the element size as well)."""
+    max_newton: int = 12
+    reuse_factorization: bool = True
+    linear_solver: str = "superlu"
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.rho_inf <= 1.0:
+            raise ValueError(f"IntegratorOptions.rho_inf must be in [0, 1], got {self.rho_inf!r}")
+        for name in ("dt_initial", "dt_min", "dt_max", "tol_displacement", "newton_tol"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"IntegratorOptions.{name} must be > 0, got {v!r}")
+        if self.dt_min > self.dt_max:
+            raise ValueError("IntegratorOptions.dt_min must be <= dt_max")
+        if self.max_newton < 1:
+            raise ValueError("IntegratorOptions.max_newton must be >= 1")
+
+
+@dataclass
+class Stats:
+    steps: int = 0
+    rejected_steps: int = 0
+    newton_iterations: int = 0
+    factorizations: int = 0
+    tangent_assemblies: int = 0
+    wall_s: dict = field(default_factory=lambda: {"tangent": 0.0, "factor": 0.0, "solve": 0.0,
+                                                  "residual": 0.0})
+
+
+class GeneralizedAlpha:
+    """Steps a :class:`State` of a :class:`Model` in time. ``step`` advances one accepted step."""
+
+    def __init__(self, model: Model, options: IntegratorOptions | None = None) -> None:
+        self.model = model
+        self.opt = options or IntegratorOptions()
+        rho = self.opt.rho_inf
+        self.am = (2.0 * rho - 1.0) / (rho + 1.0)
+        self.af = rho / (rho + 1.0)
+        self.gamma = 0.5 + self.af - self.am
+        self.beta = 0.25 * (self.gamma + 0.5) ** 2
+        self.solver = make_linear_solver(self.opt.linear_solver)
+        self.stats = Stats()
+        self.h = self.opt.dt_initial
+        self._factor_h = None  # step size the current factorisation was built with
+        self._free = model.free_index >= 0
+        self._mfree = model.mass.ravel()[self._free]
+        tri = model.tri_xloc
+        area = 0.5 * np.abs((tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
+                            - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1]))
+        self.elem_size = float(np.sqrt(np.mean(area)))
+
+    # ---------------------------------------------------------------- helpers
+    def initialize(self, state: State) -> None:
+        """Consistent initial accelerations: M qdd_0 = f_ext - f_int(q_0, v_0)."""
+        m = self.model
+        fint, _ = asm.internal_forces(m, state.positions, state.rotations, state.velocities)
+        fext = asm.external_forces(m, state.time, state.rotations)
+        qdd = np.zeros(6 * m.node_count)
+        qdd[self._free] = asm.free_vector(m, fext - fint) / self._mfree
+        state.accelerations[:] = qdd.reshape(-1, 6)
+        self._alg = state.accelerations.copy()
+
+    def _kinematics(self, s0: State, a0_alg, dq: np.ndarray, h: float):
+        """From the increment dq (n, 6) return (a_{n+1}, qdd_{n+1}, v_{n+1})."""
+        b, g, am, af = self.beta, self.gamma, self.am, self.af
+        a1 = (dq / h - s0.velocities - h * (0.5 - b) * a0_alg) / (h * b)
+        qdd = ((1.0 - am) * a1 + am * a0_alg - af * s0.accelerations) / (1.0 - af)
+        v1 = s0.velocities + h * (1.0 - g) * a0_alg + h * g * a1
+        fixed = self.model.fixed
+        a1[fixed] = 0.0
+        qdd[fixed] = 0.0
+        v1[fixed] = 0.0
+        return a1, qdd, v1
+
+    def _try_step(self, s0: State, h: float, on_progress=None):
+        """One step of size h from s0. Returns (state, qdd, a_alg, iterations) or None."""
+        m = self.model
+        b, am, af = self.beta, self.am, self.af
+        ca = (1.0 - am) / ((1.0 - af) * b * h * h)
+        cv = self.gamma / (b * h)
+        t1 = s0.time + h
+        # predictor: qdd_{n+1} = qdd_n  => a_{n+1} = qdd_n (when a_n = qdd_n), dq from Newmark
+        a_pred = ((1.0 - af) * s0.accelerations + af * s0.accelerations - am * self._alg) / (1 - am)
+        dq = h * s0.velocities + h * h * ((0.5 - b) * self._alg + b * a_pred)
+        dq[m.fixed] = 0.0
+        s1 = s0.copy()
+        s1.time = t1
+        s1.positions = s0.positions + dq[:, :3]
+        theta = dq[:, 3:].copy()
+        for i in np.flatnonzero(np.any(theta != 0.0, axis=1)):
+            s1.rotations[i] = rotation_exp(theta[i]) @ s0.rotations[i]
+        tol = self.opt.newton_tol * self.opt.tol_displacement
+        prev = None
+        fresh = False
+        for it in range(1, self.opt.max_newton + 1):
+            a1, qdd, v1 = self._kinematics(s0, self._alg, np.hstack([s1.positions - s0.positions,
+                                                                      theta]), h)
+            s1.velocities = v1
+            need = (self._factor_h != h) or not self.opt.reuse_factorization
+            if prev is not None and prev[1] > 0.3 and not fresh:
+                need = True
+            t0 = _time.perf_counter()
+            if need:
+                fint, data, _ = asm.internal_forces_and_tangent(
+                    m, s1.positions, s1.rotations, v1, cv)
+                data[m.diag_slots] += ca * self._mfree
+                asm.add_follower_tangent(m, data, t1, s1.rotations)
+                t1_ = _time.perf_counter()
+                self.stats.wall_s["tangent"] += t1_ - t0
+                self.stats.tangent_assemblies += 1
+                try:
+                    self.solver.factor(asm.csr_from_data(m, data))
+                except SingularMatrixError:
+                    return None
+                self.stats.wall_s["factor"] += _time.perf_counter() - t1_
+                self.stats.factorizations += 1
+                self._factor_h = h
+                fresh = True
+            else:
+                fint, _ = asm.internal_forces(m, s1.positions, s1.rotations, v1)
+                self.stats.wall_s["residual"] += _time.perf_counter() - t0
+            fext = asm.external_forces(m, t1, s1.rotations)
+            r = asm.free_vector(m, m.mass * qdd + fint - fext)
+            if not np.all(np.isfinite(r)):
+                return None
+            t0 = _time.perf_counter()
+            dx = -self.solver.solve(r)
+            self.stats.wall_s["solve"] += _time.perf_counter() - t0
+            self.stats.newton_iterations += 1
+            if not np.all(np.isfinite(dx)):
+                return None
+            full = np.zeros(6 * m.node_count)
+            full[self._free] = dx
+            full = full.reshape(-1, 6)
+            s1.positions += full[:, :3]
+            for i in np.flatnonzero(np.any(full[:, 3:] != 0.0, axis=1)):
+                s1.rotations[i] = rotation_exp(full[i, 3:]) @ s1.rotations[i]
+                theta[i] = rotation_log(s1.rotations[i] @ s0.rotations[i].T)
+            norm = max(np.abs(full[:, :3]).max(), self.elem_size * np.abs(full[:, 3:]).max())
+            rate = 0.0 if prev is None or prev[0] == 0 else norm / prev[0]
+            if rate >= 1.0 and it > 2:
+                return None
+            err_est = norm * rate / (1.0 - rate) if 0 < rate < 1 else norm
+            self._worst = int(np.argmax(np.abs(full).sum(axis=1)))
+            if err_est <= tol or norm <= 1e-3 * tol:
+                a1, qdd, v1 = self._kinematics(
+                    s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h)
+                s1.velocities = v1
+                s1.accelerations = qdd
+                return s1, qdd, a1, it
+            prev = (norm, rate)
+            if not fresh and rate > 0.3:
+                continue
+            if fresh and it >= 2 and rate > 0.9:
+                return None
+        return None
+
+    def step(self, state: State, t_limit: float) -> State:
+        """Advance ``state`` by one accepted step not past ``t_limit``; returns the new state."""
+        opt = self.opt
+        while True:
+            h = min(self.h, opt.dt_max, t_limit - state.time)
+            if h < opt.dt_min and t_limit - state.time > opt.dt_min:
+                worst = getattr(self, "_worst", -1)
+                pos = state.positions[worst] if worst >= 0 else None
+                raise ConvergenceError(
+                    f"time step fell below dt_min = {opt.dt_min:g} s at t = {state.time:.6g} s "
+                    f"(step {self.stats.steps + 1}); worst node {worst} at {pos} m"
+                )
+            out = self._try_step(state, h)
+            if out is None:
+                self.stats.rejected_steps += 1
+                self.h = 0.5 * h
+                self._factor_h = None
+                continue
+            s1, qdd, a1, _ = out
+            if opt.adaptive:
+                dqdd = qdd[:, :3] - state.accelerations[:, :3]
+                err = h * h * abs(self.beta - 1.0 / 6.0) * np.sqrt((dqdd**2).sum(axis=1)).max()
+                ratio = err / opt.tol_displacement
+                grow = 2.0 if ratio == 0 else min(2.0, max(0.3, 0.9 * ratio ** (-1.0 / 3.0)))
+                if ratio > 1.0:
+                    self.stats.rejected_steps += 1
+                    self.h = h * grow
+                    continue
+                # keep the factorisation valid: only change h for a clear gain
+                if grow > 1.25 or grow < 1.0:
+                    self.h = min(h * grow, opt.dt_max) if h >= self.h * 0.999 else self.h
+            self._alg = a1
+            self.stats.steps += 1
+            return s1
