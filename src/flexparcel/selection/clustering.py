@@ -72,8 +72,7 @@ class CentroidTable:
     def as_survey(self) -> Survey:
         """The centroids encoded as a survey (ids ``"cluster<k>"``), for Gower distances."""
         records = [
-            {"__id": f"cluster{k}", **v}
-            for k, v in zip(self.cluster_ids, self.values, strict=True)
+            {"__id": f"cluster{k}", **v} for k, v in zip(self.cluster_ids, self.values, strict=True)
         ]
         schema = SurveySchema(self.schema.columns, id_column="__id")
         return survey_from_records(records, schema, source="centroid table")
@@ -333,4 +332,3 @@ def select_diverse(
         dropped=tuple(dropped),
         mean_distance_at_drop=tuple(scores),
     )
-

@@ -55,9 +55,7 @@ def feature_ranges(
             if c.kind == "ordinal":
                 out[c.name] = float(len(c.levels) - 1)
             elif c.minimum is None or c.maximum is None:
-                raise ValueError(
-                    f"column {c.name!r}: schema ranges need both min and max declared"
-                )
+                raise ValueError(f"column {c.name!r}: schema ranges need both min and max declared")
             else:
                 out[c.name] = c.maximum - c.minimum
         return out

@@ -6,8 +6,8 @@ not public; only the six HDBSCAN centroids are (Table 1 of the paper, copied bel
 given centroids, so tests and examples can check that clustering recovers known groups.
 
 Scatter model, per cluster member: numeric columns log-normal around the centroid (relative
-spread :data:`DEFAULT_SPREAD`, rounded to 0.5 cm (length, width), 0.1 cm (height) and 5 g, clipped to the
-schema bounds); each ordinal class moves to a neighbouring level with probability
+spread :data:`DEFAULT_SPREAD`), rounded to 0.5 cm (length, width), 0.1 cm (height) and 5 g, and
+clipped to the schema bounds; each ordinal class moves to a neighbouring level with probability
 ``ordinal_flip`` (classes judged by eye are noisy); categorical and boolean columns keep the
 centroid value. Optional noise rows are drawn broadly over the schema.
 """
