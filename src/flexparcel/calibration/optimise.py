@@ -43,7 +43,9 @@ def range_weights(Y) -> np.ndarray:
     Y = np.atleast_2d(np.asarray(Y, dtype=float))
     span = np.ptp(Y, axis=0)
     if np.any(span <= 0) or not np.all(np.isfinite(span)):
-        raise ValueError("a response does not vary over its design; its 1/range weight is undefined")
+        raise ValueError(
+            "a response does not vary over its design; its 1/range weight is undefined"
+        )
     return 1.0 / span
 
 

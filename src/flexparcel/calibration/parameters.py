@@ -82,7 +82,7 @@ class Parameter:
 
     @property
     def nominal_value(self) -> float:
-        """Frozen value [unit]: ``nominal`` or the midpoint of the range in the parameter's scale."""
+        """Frozen value [unit]: ``nominal``, else the range's midpoint in the parameter's scale."""
         if self.nominal is not None:
             return float(self.nominal)
         return float(self.from_unit(0.5))
@@ -91,7 +91,8 @@ class Parameter:
         """Map physical value(s) [unit] to unit coordinates in ``[0, 1]`` (not clipped)."""
         v = np.asarray(value, dtype=float)
         if self.scale == "log":
-            return (np.log(v) - math.log(self.lower)) / (math.log(self.upper) - math.log(self.lower))
+            lo, hi = math.log(self.lower), math.log(self.upper)
+            return (np.log(v) - lo) / (hi - lo)
         return (v - self.lower) / (self.upper - self.lower)
 
     def from_unit(self, u):

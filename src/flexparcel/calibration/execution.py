@@ -1,0 +1,360 @@
+"""Executing the runs of a study store: local processes, a Dask cluster, or in-process.
+
+:func:`run_campaign` takes run keys already registered in a :class:`StudyStore` and brings each
+to ``done`` (or ``failed`` after its retries):
+
+* runs already ``done`` are skipped, so a campaign can be repeated or resumed at no cost;
+* runs left ``running`` by a killed campaign are reset to ``pending`` and run again (their result
+  never reached the store, so nothing is repeated that was recorded);
+* every start, success and failure is a separate committed transaction;
+* a failed run (an exception in the simulator, a non-finite or missing response, a crashed worker
+  process) is recorded with its error text and resubmitted until it has had ``1 + retries``
+  attempts; after that it stays ``failed`` (visible in the store and the report) until a campaign
+  with ``retry_failed=True`` grants it a fresh budget.
+
+Executors: ``concurrent.futures.ProcessPoolExecutor`` (``workers`` processes, the default),
+``dask.distributed`` (``scheduler`` = the address of a running scheduler; workers need flexparcel
+and the simulator's module installed), or in-process serial execution (``workers=0``, for
+debugging and small tests). At most as many runs are in flight as there are workers, so a run
+handed to an executor is a run that is actually executing; that is what makes ``running`` in the
+store mean "in flight".
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import traceback
+from collections import deque
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+from flexparcel.calibration.simulators import get_simulator
+from flexparcel.calibration.store import StudyStore, worker_label
+
+__all__ = ["CampaignReport", "execute_run", "run_campaign"]
+
+_MAX_ERROR_CHARS = 8000
+
+
+@dataclass
+class CampaignReport:
+    """What a campaign did. ``failed`` lists the run keys still failed at its end."""
+
+    requested: int = 0
+    already_done: int = 0
+    interrupted_reset: int = 0
+    attempts: int = 0
+    succeeded: int = 0
+    failed: list[str] = field(default_factory=list)
+    wall_s: float = 0.0
+    executor: str = ""
+
+    @property
+    def complete(self) -> bool:
+        return not self.failed
+
+
+def _init_worker(threads: int) -> None:
+    # Two BLAS/OpenMP pools on few cores slow each other down; a worker is one run, one thread.
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ.setdefault(var, str(threads))
+
+
+def execute_run(
+    simulator: str,
+    version: str,
+    setup: Mapping,
+    params: Mapping[str, float],
+    expect: Sequence[str] = (),
+    modules: Sequence[str] = (),
+    threads: int | None = None,
+) -> dict:
+    """Run one simulation; executed in a worker. Never raises for simulator errors.
+
+    Returns ``{"ok": True, "responses": {...}, ...}`` or ``{"ok": False, "error": text, ...}``,
+    with ``wall_s`` [s], ``worker`` (``host:pid``) and ``code_version``.
+    """
+    from flexparcel import __version__
+
+    t0 = time.perf_counter()
+    out: dict = {"worker": worker_label()}
+    try:
+        info = get_simulator(simulator, modules)
+        out["code_version"] = f"flexparcel {__version__}; {simulator} {info.version}"
+        if str(info.version) != str(version):
+            raise RuntimeError(
+                f"simulator {simulator!r} here is version {info.version}, the study store "
+                f"expects version {version} (a worker with a different installation?)"
+            )
+        limiter = None
+        if threads:
+            try:
+                from threadpoolctl import threadpool_limits
+
+                limiter = threadpool_limits(threads)
+            except ImportError:  # pragma: no cover - threadpoolctl ships with scikit-learn
+                limiter = None
+        try:
+            raw = info.func(dict(params), **dict(setup))
+        finally:
+            if limiter is not None:
+                limiter.restore_original_limits()
+        if not isinstance(raw, Mapping):
+            raise TypeError(
+                f"simulator {simulator!r} returned {type(raw).__name__}, expected a mapping "
+                "of response names to numbers"
+            )
+        responses = {}
+        for name, value in raw.items():
+            v = float(value)
+            if v != v or v in (float("inf"), float("-inf")):
+                # Never write NaNs as results: a non-finite response is a failed run.
+                raise ValueError(f"simulator {simulator!r} returned non-finite {name} = {v}")
+            responses[str(name)] = v
+        missing = [r for r in expect if r not in responses]
+        if missing:
+            raise KeyError(
+                f"simulator {simulator!r} returned no response {', '.join(map(repr, missing))} "
+                f"(it returned: {', '.join(responses) or 'nothing'})"
+            )
+        out.update(ok=True, responses=responses)
+    except Exception:
+        out.update(ok=False, error=traceback.format_exc()[-_MAX_ERROR_CHARS:])
+    out["wall_s"] = time.perf_counter() - t0
+    out.setdefault("code_version", f"flexparcel {__version__}")
+    return out
+
+
+class _SerialExecutor:
+    """Runs each task at submit time in this process (``workers=0``)."""
+
+    def submit(self, fn, *args, **kwargs):
+        from concurrent.futures import Future
+
+        fut: Future = Future()
+        try:
+            fut.set_result(fn(*args, **kwargs))
+        except BaseException as exc:  # pragma: no cover - execute_run catches Exception
+            fut.set_exception(exc)
+        return fut
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        pass
+
+
+def _make_executor(workers: int | None, scheduler, start_method: str, threads: int):
+    """(executor, max_in_flight, label, closer)."""
+    if scheduler is not None:
+        from distributed import Client
+
+        client = scheduler if isinstance(scheduler, Client) else Client(scheduler, timeout="30s")
+        executor = client.get_executor(pure=False)
+        n = max(1, sum(client.nthreads().values()))
+        own = client is not scheduler
+
+        def close():
+            executor.shutdown(wait=False)
+            if own:
+                client.close()
+
+        return executor, n, f"dask {client.scheduler.address}", close
+    if workers == 0:
+        ex = _SerialExecutor()
+        return ex, 1, "serial", lambda: None
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    n = workers if workers is not None else (os.cpu_count() or 1)
+    ex = ProcessPoolExecutor(
+        max_workers=n,
+        mp_context=multiprocessing.get_context(start_method),
+        initializer=_init_worker,
+        initargs=(threads,),
+    )
+
+    def close():
+        ex.shutdown(wait=True, cancel_futures=True)
+
+    return ex, n, f"{n} local process(es)", close
+
+
+def run_campaign(
+    store: StudyStore,
+    keys: Iterable[str],
+    *,
+    workers: int | None = None,
+    scheduler=None,
+    retries: int = 2,
+    retry_failed: bool = False,
+    expect: Mapping[str, Sequence[str]] | None = None,
+    modules: Sequence[str] = (),
+    threads: int = 1,
+    start_method: str = "spawn",
+    progress: bool = True,
+    desc: str = "runs",
+) -> CampaignReport:
+    """Execute the runs ``keys`` of ``store`` that are not done yet.
+
+    Parameters
+    ----------
+    workers:
+        Local worker processes (default: all CPUs); ``0`` runs serially in this process.
+    scheduler:
+        Address of a Dask scheduler (``"tcp://host:8786"``) or a ``distributed.Client``; when
+        given, runs go to that cluster instead of local processes.
+    retries:
+        Extra attempts after a failure (a run gets at most ``1 + retries`` attempts).
+    retry_failed:
+        Give runs that exhausted their attempts in earlier campaigns a fresh budget.
+    expect:
+        ``{run key: response names}`` the run must return, else it fails.
+    modules:
+        Modules to import (in workers too) so that the simulators register themselves.
+    threads:
+        BLAS/OpenMP threads per worker process.
+    """
+    if retries < 0:
+        raise ValueError(f"retries must be >= 0, got {retries}")
+    t_start = time.perf_counter()
+    keys = list(dict.fromkeys(keys))  # unique, order kept
+    report = CampaignReport(requested=len(keys))
+    expect = expect or {}
+    store.acquire_lock()
+    try:
+        report.interrupted_reset = store.reset_interrupted()
+        rows = {r["run_key"]: r for r in store.get_runs(keys)}
+        budget: dict[str, int] = {}
+        queue: deque[str] = deque()
+        for key in keys:
+            r = rows[key]
+            if r["status"] == "done":
+                report.already_done += 1
+                continue
+            if r["status"] == "failed" and not retry_failed and r["attempts"] >= 1 + retries:
+                report.failed.append(key)
+                continue
+            fresh = r["status"] == "failed" and retry_failed
+            budget[key] = (r["attempts"] if fresh else 0) + 1 + retries
+            queue.append(key)
+        if not queue:
+            report.wall_s = time.perf_counter() - t_start
+            return report
+
+        executor, max_in_flight, label, close = _make_executor(
+            workers, scheduler, start_method, threads
+        )
+        report.executor = label
+        bar = _progress(progress, total=len(keys), initial=report.already_done, desc=desc)
+        in_flight: dict = {}
+        pool_broken = False
+        # Worker processes get their BLAS pools limited; in-process runs keep the caller's.
+        run_threads = None if label == "serial" else threads
+        try:
+            while queue or in_flight:
+                if pool_broken and not in_flight:
+                    # A crashed worker process breaks the whole pool: every run in flight got
+                    # the error (and an attempt); a fresh pool runs the rest.
+                    close()
+                    executor, max_in_flight, label, close = _make_executor(
+                        workers, scheduler, start_method, threads
+                    )
+                    pool_broken = False
+                while not pool_broken and queue and len(in_flight) < max_in_flight:
+                    key = queue.popleft()
+                    store.mark_running(key)
+                    r = rows[key]
+                    try:
+                        fut = executor.submit(
+                            execute_run,
+                            r["simulator"],
+                            r["simulator_version"],
+                            r["setup"],
+                            r["params"],
+                            tuple(expect.get(key, ())),
+                            tuple(modules),
+                            run_threads,
+                        )
+                    except Exception:  # the pool broke between two submissions
+                        store.mark_pending(key)
+                        queue.appendleft(key)
+                        pool_broken = True
+                        break
+                    report.attempts += 1
+                    in_flight[fut] = key
+                if not in_flight:
+                    continue
+                for fut in _wait_any(list(in_flight)):
+                    key = in_flight.pop(fut)
+                    outcome = _outcome(fut)
+                    pool_broken |= outcome.pop("broken", False)
+                    if outcome["ok"]:
+                        store.mark_done(
+                            key,
+                            outcome["responses"],
+                            wall_s=outcome["wall_s"],
+                            worker=outcome.get("worker", ""),
+                            code_version=outcome.get("code_version", ""),
+                        )
+                        report.succeeded += 1
+                        if bar is not None:
+                            bar.update(1)
+                        continue
+                    store.mark_failed(
+                        key,
+                        outcome["error"],
+                        wall_s=outcome.get("wall_s"),
+                        worker=outcome.get("worker", ""),
+                    )
+                    if store.get_runs([key])[0]["attempts"] < budget[key]:
+                        queue.append(key)
+                    else:
+                        report.failed.append(key)
+                        if bar is not None:
+                            bar.update(1)
+        finally:
+            for key in in_flight.values():
+                # Interrupted (KeyboardInterrupt, error in this process): not the run's fault.
+                store.mark_pending(key)
+            if bar is not None:
+                bar.close()
+            close()
+    finally:
+        store.release_lock()
+    report.wall_s = time.perf_counter() - t_start
+    return report
+
+
+def _wait_any(futures: list):
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    done, _ = wait(futures, return_when=FIRST_COMPLETED)
+    return done
+
+
+def _outcome(fut) -> dict:
+    from concurrent.futures.process import BrokenProcessPool
+
+    try:
+        return dict(fut.result())
+    except BrokenProcessPool as exc:
+        return {
+            "ok": False,
+            "broken": True,
+            "error": f"worker process died while this run was in flight: {exc!r}",
+        }
+    except Exception as exc:  # e.g. a Dask worker lost (KilledWorker), a transport error
+        return {
+            "ok": False,
+            "error": "".join(traceback.format_exception(exc))[-_MAX_ERROR_CHARS:],
+        }
+
+
+def _progress(enabled: bool, **kwargs):
+    if not enabled:
+        return None
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:  # pragma: no cover
+        return None
+    return tqdm(unit="run", leave=False, **kwargs)

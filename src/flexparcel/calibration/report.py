@@ -1,0 +1,505 @@
+"""The study report: ``results.json`` and a self-contained ``report.html``.
+
+Everything is read back from the study store, so the report can be (re)written at any time
+after the stages it shows. Figures are PNGs embedded as base64 (the HTML file stands alone) and
+also written to ``figures/`` next to it. All files are written atomically (temporary file in the
+same folder, then ``os.replace``), so a reader never sees a half-written report.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from flexparcel.calibration.study import Study
+
+__all__ = ["write_report", "write_atomic"]
+
+
+def write_atomic(path: str | Path, data: bytes | str) -> Path:
+    """Write ``data`` to ``path`` via a temporary file and ``os.replace`` (atomic on POSIX)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(raw)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def _finite(obj):
+    """Replace NaN/inf by None so results.json is strict JSON."""
+    if isinstance(obj, float):
+        return obj if np.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
+
+
+# -- formatting helpers ----------------------------------------------------------------------
+
+
+def _fmt(v, digits: int = 4) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        v = float(v)
+        if v != v:
+            return "–"
+        if v == 0:
+            return "0"
+        if abs(v) >= 1e5 or abs(v) < 1e-3:
+            return f"{v:.{digits - 1}e}"
+        return f"{v:.{digits}g}"
+    return html.escape(str(v))
+
+
+def _table(header: list[str], rows: list[list], classes: list[str] | None = None) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = []
+    for i, row in enumerate(rows):
+        cls = f' class="{classes[i]}"' if classes and classes[i] else ""
+        body.append(f"<tr{cls}>" + "".join(f"<td>{_fmt(v)}</td>" for v in row) + "</tr>")
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+
+
+class _Figures:
+    """Collects matplotlib figures as PNG bytes (embedded and written to ``figures/``)."""
+
+    def __init__(self, folder: Path):
+        self.folder = folder
+        self.files: list[Path] = []
+
+    def add(self, fig, name: str) -> str:
+        import matplotlib.pyplot as plt
+
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        png = buf.getvalue()
+        self.files.append(write_atomic(self.folder / f"{name}.png", png))
+        b64 = base64.b64encode(png).decode("ascii")
+        return f'<img alt="{html.escape(name)}" src="data:image/png;base64,{b64}">'
+
+
+# -- figures ---------------------------------------------------------------------------------
+
+
+def _screening_figures(figs: _Figures, exp: str, res: dict) -> str:
+    import matplotlib.pyplot as plt
+
+    out = []
+    names = res["parameters"]
+    for r, an in res["anova"].items():
+        fig, axes = plt.subplots(1, 2, figsize=(11, 3.6))
+        # Response (main-effects) plot, as the paper's Fig. 31: mean response at each level.
+        ax = axes[0]
+        sig = set(an["significant_factors"])
+        for j, n in enumerate(names):
+            lo, hi = an["main_effect_means"][n]
+            color = "tab:green" if n in sig else "tab:red"
+            ax.plot([2 * j, 2 * j + 1], [lo, hi], "o-", color=color)
+        ax.set_xticks([2 * j + 0.5 for j in range(len(names))])
+        ax.set_xticklabels(names, rotation=30, ha="right", fontsize=8)
+        ax.set_ylabel(f"mean {r}")
+        ax.set_title("response plot (low -> high; green = significant)", fontsize=9)
+        # Pareto chart of the standardised effects with the significance threshold.
+        ax = axes[1]
+        rows = [row for row in an["table"] if row["term"] != "Residual"]
+        rows.sort(key=lambda row: -abs(row["F"]))
+        rows = rows[:20]
+        from scipy import stats
+
+        if an["method"] == "anova":
+            vals = [np.sqrt(row["F"]) for row in rows]
+            thr = np.sqrt(stats.f.isf(an["alpha"], 1, an["residual_df"]))
+            xlabel = "|t| = sqrt(F)"
+        else:
+            vals = [abs(row["effect"]) for row in rows]
+            thr = an["margin_of_error"]
+            xlabel = "|effect| (Lenth ME line)"
+        colors = ["tab:green" if row["significant"] else "tab:red" for row in rows]
+        y = np.arange(len(rows))[::-1]
+        ax.barh(y, vals, color=colors)
+        ax.set_yticks(y)
+        ax.set_yticklabels([row["term"] for row in rows], fontsize=7)
+        ax.axvline(thr, color="k", ls="--", lw=1)
+        ax.set_xlabel(xlabel)
+        ax.set_title(f"Pareto of effects, alpha = {an['alpha']}", fontsize=9)
+        fig.suptitle(f"{exp}: screening of {r}", fontsize=10)
+        out.append(figs.add(fig, f"screening_{exp}_{r}"))
+    return "".join(out)
+
+
+def _residual_figure(figs: _Figures, exp: str, r: str, gp: dict, unit: str) -> str:
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    ht, hp, hs = (np.asarray(gp[k]) for k in ("holdout_true", "holdout_pred", "holdout_std"))
+    ax = axes[0]
+    lo = min(np.min(ht) if ht.size else np.inf, np.min(gp["cv_pred"]))
+    hi = max(np.max(ht) if ht.size else -np.inf, np.max(gp["cv_pred"]))
+    ax.plot([lo, hi], [lo, hi], "k-", lw=0.8)
+    ax.errorbar(ht, hp, yerr=2 * hs, fmt="o", color="tab:blue", label="hold-out (±2σ)")
+    ax.set_xlabel(f"simulated {r} [{unit}]" if unit else f"simulated {r}")
+    ax.set_ylabel("surrogate prediction")
+    ax.legend(fontsize=8)
+    ax.set_title(f"hold-out RMSE = {_fmt(gp['holdout_rmse'])}", fontsize=9)
+    ax = axes[1]
+    ax.axhline(0, color="k", lw=0.8)
+    ax.plot(hp, hp - ht, "o", color="tab:blue", label="hold-out")
+    ax.set_xlabel("surrogate prediction")
+    ax.set_ylabel("residual (predicted - simulated)")
+    ax.set_title(f"residuals, kernel {gp['kernel']}", fontsize=9)
+    fig.suptitle(f"{exp}: {r}", fontsize=10)
+    return figs.add(fig, f"residuals_{exp}_{r}")
+
+
+def _contour_figure(figs, study, exp, r, surrogate, fit, target, optimum) -> str:
+    import matplotlib.pyplot as plt
+
+    active = fit["active"]
+    space = study.config.parameters.subspace(active)
+    x_opt = np.array([optimum[p] for p in active]) if optimum else space.nominal
+    ls = np.asarray(fit["responses"][r]["length_scales"])
+    if len(active) == 1:
+        fig, ax = plt.subplots(figsize=(5.5, 3.6))
+        u = np.linspace(0, 1, 200)
+        X = space.from_unit(u[:, None])
+        m, s = surrogate.predict(X, return_std=True)
+        ax.plot(X[:, 0], m, "b-")
+        ax.fill_between(X[:, 0], m - 2 * s, m + 2 * s, alpha=0.2)
+        ax.axhline(target.value, color="tab:green", lw=2, label="target")
+        if optimum:
+            ax.axvline(x_opt[0], color="tab:red", ls="--", label="optimum")
+        ax.set_xlabel(f"{active[0]} [{space.parameters[0].unit}]")
+        ax.set_ylabel(r)
+        if space.parameters[0].scale == "log":
+            ax.set_xscale("log")
+        ax.legend(fontsize=8)
+        return figs.add(fig, f"contour_{exp}_{r}")
+    # The two most influential inputs (shortest length scales); the rest held at the optimum.
+    i, j = sorted(np.argsort(ls)[:2])
+    n = 60
+    g = np.linspace(0, 1, n)
+    GI, GJ = np.meshgrid(g, g)
+    U = np.tile(space.to_unit(x_opt[None, :])[0], (n * n, 1))
+    U[:, i], U[:, j] = GI.ravel(), GJ.ravel()
+    X = space.from_unit(U)
+    Z = surrogate.predict(X).reshape(n, n)
+    XI, XJ = X[:, i].reshape(n, n), X[:, j].reshape(n, n)
+    fig, ax = plt.subplots(figsize=(5.8, 4.4))
+    cs = ax.contourf(XI, XJ, Z, levels=20, cmap="viridis")
+    ax.contour(XI, XJ, Z, levels=10, colors="k", linewidths=0.4)
+    fig.colorbar(cs, ax=ax, label=f"{r} [{target.unit}]" if target.unit else r)
+    if Z.min() <= target.value <= Z.max():
+        ax.contour(XI, XJ, Z, levels=[target.value], colors="tab:green", linewidths=2.5)
+    ax.plot([], [], color="tab:green", lw=2.5, label=f"target {_fmt(target.value)}")
+    if optimum:
+        ax.plot(x_opt[i], x_opt[j], marker="*", color="tab:red", ms=16, mec="w", label="optimum")
+    p_i, p_j = space.parameters[i], space.parameters[j]
+    ax.set_xlabel(f"{p_i.name} [{p_i.unit}]")
+    ax.set_ylabel(f"{p_j.name} [{p_j.unit}]")
+    if p_i.scale == "log":
+        ax.set_xscale("log")
+    if p_j.scale == "log":
+        ax.set_yscale("log")
+    others = [p for k, p in enumerate(active) if k not in (i, j)]
+    title = f"{exp}: surrogate of {r}"
+    if others:
+        title += "\n(" + ", ".join(f"{p} = {_fmt(optimum[p] if optimum else 0)}" for p in others)
+        title += " at the optimum)"
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8, loc="best")
+    return figs.add(fig, f"contour_{exp}_{r}")
+
+
+# -- report ----------------------------------------------------------------------------------
+
+_CSS = """
+body{font-family:system-ui,sans-serif;margin:2em;max-width:1200px;color:#222}
+table{border-collapse:collapse;margin:.5em 0 1em;font-size:13px}
+th,td{border:1px solid #ccc;padding:3px 7px;text-align:right}
+th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
+tr.sig td{background:#e3f6e3}tr.ns td{background:#fbe9e9}tr.best td{font-weight:bold}
+img{max-width:100%;margin:.3em 0}h2{border-bottom:2px solid #ddd;margin-top:1.6em}
+.note{color:#555;font-size:13px}details{margin:.5em 0}pre{white-space:pre-wrap;font-size:12px}
+"""
+
+
+def write_report(study: Study) -> Path:
+    """Write ``results.json``, ``figures/*.png`` and ``report.html``; returns the HTML path."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+
+    from flexparcel import __version__
+
+    c = study.config
+    store = study.store
+    out = Path(study.output)
+    figs = _Figures(out / "figures")
+    parts: list[str] = []
+    add = parts.append
+
+    screening = {e: store.get_result("screening", e) for e in c.experiments}
+    design = {e: store.get_result("design", e) for e in c.experiments}
+    fits = {e: store.get_result("fit", e) for e in c.experiments}
+    opt = store.get_result("optimise", "")
+    val = store.get_result("validation", "")
+    counts = store.status_counts()
+    optimum = opt["optimum"] if opt else None
+
+    add(f"<h1>Calibration study: {html.escape(c.name)}</h1>")
+    if c.description:
+        add(f"<p>{html.escape(c.description)}</p>")
+    add(
+        f"<p class='note'>study file {html.escape(str(c.path))}; store "
+        f"{html.escape(str(study.store_path))}; flexparcel {__version__}; written "
+        f"{time.strftime('%Y-%m-%d %H:%M:%S')}. Runs in store: "
+        + ", ".join(f"{k} {v}" for k, v in counts.items())
+        + "</p>"
+    )
+
+    # parameters
+    add("<h2>Parameters</h2>")
+    calibrated = set(opt["calibrated"]) if opt else set()
+    prow = []
+    for p in c.parameters.parameters:
+        role = "calibrated" if p.name in calibrated else ("frozen" if opt else "")
+        prow.append([p.name, p.unit, p.lower, p.upper, p.scale, p.nominal_value, role])
+    add(_table(["parameter", "unit", "lower", "upper", "scale", "nominal", "role"], prow))
+
+    for exp in c.experiments.values():
+        e = exp.name
+        add(f"<h2>Experiment {html.escape(e)}</h2>")
+        add(
+            f"<p class='note'>simulator <b>{html.escape(exp.simulator)}</b>, setup "
+            f"<code>{html.escape(json.dumps(dict(exp.setup)))}</code>; parameters "
+            f"{', '.join(exp.parameters)}</p>"
+        )
+        sc = screening[e]
+        if sc:
+            add("<h3>Screening</h3>")
+            add(
+                f"<p>{sc['design']} design ({len(sc['coded'])} runs"
+                + (f", generators {', '.join(sc['generators'])}" if sc["generators"] else "")
+                + f"). Significant parameters: <b>{', '.join(sc['significant'])}</b>; frozen: "
+                + (", ".join(f"{k} = {_fmt(v)}" for k, v in sc["frozen"].items()) or "none")
+                + "</p>"
+            )
+            hdr = [*sc["parameters"], *sc["responses"]]
+            rows = [
+                [*coded, *(sc["responses"][r][k] for r in sc["responses"])]
+                for k, coded in enumerate(sc["coded"])
+            ]
+            add(
+                "<details><summary>factorial design table (coded units)</summary>"
+                + _table(hdr, rows)
+                + "</details>"
+            )
+            for r, an in sc["anova"].items():
+                title = "ANOVA" if an["method"] == "anova" else "Lenth effects"
+                add(f"<h4>{title}: {html.escape(r)}</h4>")
+                trs = [
+                    [row["term"], row["df"], row["sum_sq"], row["mean_sq"], row["F"], row["p"]]
+                    + [row["effect"], row["significant"]]
+                    for row in an["table"]
+                ]
+                cls = [
+                    "" if row["term"] == "Residual" else ("sig" if row["significant"] else "ns")
+                    for row in an["table"]
+                ]
+                add(_table(["term", "df", "SS", "MS", "F", "p", "effect", "significant"], trs, cls))
+                if an["method"] == "lenth":
+                    add(
+                        f"<p class='note'>PSE = {_fmt(an['pse'])}, margin of error = "
+                        f"{_fmt(an['margin_of_error'])}</p>"
+                    )
+                else:
+                    add(
+                        "<p class='note'>Main effects and two-factor interactions; higher-order "
+                        "interactions pooled into the residual. alpha = "
+                        f"{an['alpha']}</p>"
+                    )
+                if an["aliased"]:
+                    add(
+                        "<p class='note'>aliased (not estimated): "
+                        + ", ".join(f"{k} = {v}" for k, v in list(an["aliased"].items())[:30])
+                        + "</p>"
+                    )
+            add(_screening_figures(figs, e, sc))
+
+        d, fit = design[e], fits[e]
+        if d:
+            add("<h3>Design (Latin hypercube)</h3>")
+            keys = store.design_keys("design", e)[: d["runs"]]
+            runs = store.get_runs(keys)
+            add(
+                f"<p>{len(runs)} runs over {', '.join(d['active'])}; frozen: "
+                + (", ".join(f"{k} = {_fmt(v)}" for k, v in d["frozen"].items()) or "none")
+                + f"; done {sum(r['status'] == 'done' for r in runs)}, failed "
+                + f"{sum(r['status'] == 'failed' for r in runs)}.</p>"
+            )
+            rs = list(exp.responses)
+            rows = [
+                [i, *(r["params"][p] for p in d["active"])]
+                + [(r["responses"] or {}).get(x) for x in rs]
+                + [r["status"], r["attempts"], r["wall_s"]]
+                for i, r in enumerate(runs)
+            ]
+            add(
+                "<details><summary>design table</summary>"
+                + _table(["#", *d["active"], *rs, "status", "attempts", "wall [s]"], rows)
+                + "</details>"
+            )
+        if fit:
+            add("<h3>Surrogates (Gaussian process regression)</h3>")
+            surrogates = study._surrogates(exp, fit)
+            for t in exp.targets:
+                r = t.response
+                gp = fit["responses"][r]
+                add(f"<h4>{html.escape(r)}</h4>")
+                krows = [[k, v, *gp["cv_rmse_folds"][k]] for k, v in sorted(gp["cv_rmse"].items())]
+                kcls = ["best" if k == gp["kernel"] else "" for k, *_ in krows]
+                folds = [f"fold {i + 1}" for i in range(len(krows[0]) - 2)]
+                add(_table(["kernel", "mean CV RMSE", *folds], krows, kcls))
+                add(
+                    f"<p>chosen kernel <b>{gp['kernel']}</b>: <code>"
+                    f"{html.escape(gp['kernel_repr'])}</code>; hold-out RMSE "
+                    f"<b>{_fmt(gp['holdout_rmse'])}</b> {html.escape(t.unit)} on "
+                    f"{len(gp['holdout_index'])} untouched runs (response range "
+                    f"{_fmt(fit['range'][r][0])} … {_fmt(fit['range'][r][1])}).</p>"
+                )
+                add(_residual_figure(figs, e, r, gp, t.unit))
+                add(_contour_figure(figs, study, e, r, surrogates[r], fit, t, optimum))
+
+    if opt:
+        add("<h2>Calibration</h2>")
+        add(
+            "<p>Minimised <code>error = sum_i (w_i (Z_target,i - Z_pred,i))^2</code> with "
+            f"bounded Nelder–Mead from {len(opt['starts'])} starts; error at the optimum "
+            f"<b>{_fmt(opt['error'])}</b>.</p>"
+        )
+        rows = []
+        for n in opt["calibrated"]:
+            p = c.parameters[n]
+            rows.append([n, opt["optimum"][n], p.unit, p.lower, p.upper, opt["optimum_unit"][n]])
+        add(_table(["parameter", "optimum", "unit", "lower", "upper", "unit coordinate"], rows))
+        rows = [
+            [
+                f"{t['experiment']}.{t['response']}",
+                t["target"],
+                t["predicted"],
+                t["std"],
+                t["weight"],
+                t["weight_source"],
+            ]
+            for t in opt["targets"]
+        ]
+        add(_table(["response", "target", "predicted", "GP std", "weight", "weight from"], rows))
+        srows = [
+            [i + 1, s["error"], s["nit"], s["success"], *s["x"]]
+            for i, s in enumerate(opt["starts"])
+        ]
+        add(
+            "<details><summary>Nelder–Mead starts</summary>"
+            + _table(["start", "error", "iterations", "converged", *opt["calibrated"]], srows)
+            + "</details>"
+        )
+    if val:
+        add("<h2>Validation at the optimum</h2>")
+        rows = [
+            [
+                f"{v['experiment']}.{v['response']}",
+                v["target"],
+                v["predicted"],
+                v["simulated"],
+                None if v["simulated"] is None else v["simulated"] - v["target"],
+                v["within_spread"],
+                v["status"],
+                v["wall_s"],
+            ]
+            for v in val["rows"]
+        ]
+        add(
+            _table(
+                [
+                    "response",
+                    "target",
+                    "surrogate",
+                    "simulated",
+                    "simulated - target",
+                    "within spread",
+                    "status",
+                    "wall [s]",
+                ],
+                rows,
+            )
+        )
+    failed = [r for r in store.all_runs() if r["status"] == "failed"]
+    if failed:
+        add("<h2>Failed runs</h2>")
+        for r in failed[:50]:
+            add(
+                f"<details><summary>{r['run_key'][:12]} ({r['attempts']} attempts)</summary>"
+                f"<pre>{html.escape(r['error'] or '')}</pre></details>"
+            )
+
+    page = (
+        "<!DOCTYPE html><html><head><meta charset='utf-8'>"
+        f"<title>{html.escape(c.name)} – flexparcel calibration</title>"
+        f"<style>{_CSS}</style></head><body>{''.join(parts)}</body></html>"
+    )
+    results = {
+        "study": c.name,
+        "flexparcel_version": __version__,
+        "run_counts": counts,
+        "screening": {e: v for e, v in screening.items() if v},
+        "design": {e: v for e, v in design.items() if v},
+        "fit": {
+            e: {
+                "active": v["active"],
+                "n_runs": len(v["run_keys"]),
+                "n_failed": v["n_failed"],
+                "responses": {
+                    r: {
+                        k: g[k]
+                        for k in ("kernel", "kernel_repr", "cv_rmse", "holdout_rmse", "theta")
+                    }
+                    for r, g in v["responses"].items()
+                },
+            }
+            for e, v in fits.items()
+            if v
+        },
+        "optimise": opt,
+        "validation": val,
+        "figures": [str(p.relative_to(out)) for p in figs.files],
+    }
+    write_atomic(out / "results.json", json.dumps(_finite(results), indent=2, allow_nan=False))
+    return write_atomic(out / "report.html", page)

@@ -1,0 +1,977 @@
+"""Calibration studies: the ``study.toml`` format and the pipeline stages.
+
+A study (documented in ``docs/calibration.md``) declares parameters, experiments with their
+simulator, fixed setup and measured targets, and options for each stage. :func:`load_study`
+parses and validates it; every error names the file and the offending field.
+
+:class:`Study` runs the paper's step 4 as resumable stages, each recording its runs and results
+in the study store, so every stage can also be run alone later:
+
+``screen``    two-level factorial of an experiment's parameters, multi-factor ANOVA, significant
+              parameters passed on (experiments with a ``[screening]`` table only);
+``design``    Latin hypercube over each experiment's active parameters, others frozen at their
+              nominal values; extended, not redrawn, when ``runs`` grows;
+``fit``       one GPR surrogate per target response, kernel by 5-fold CV on 90 % of the runs,
+              RMSE on the untouched 10 %;
+``optimise``  weighted error of all targets minimised by multi-start bounded Nelder-Mead;
+``validate``  the simulators re-run at the optimum (appended to the store);
+``report``    ``results.json`` and a self-contained ``report.html``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from flexparcel.calibration.designs import (
+    extend_latin_hypercube,
+    fractional_factorial,
+    full_factorial,
+    latin_hypercube,
+)
+from flexparcel.calibration.execution import CampaignReport, run_campaign
+from flexparcel.calibration.optimise import NelderMeadCalibrator, weighted_error
+from flexparcel.calibration.parameters import Parameter, ParameterSpace, Target
+from flexparcel.calibration.screening import screen_responses
+from flexparcel.calibration.simulators import get_simulator
+from flexparcel.calibration.store import RunSpec, StudyStore
+from flexparcel.calibration.surrogates import KERNELS, GPRSurrogate
+
+__all__ = [
+    "STUDY_FORMAT_VERSION",
+    "STAGES",
+    "StudyConfigError",
+    "StudyConfig",
+    "ExperimentConfig",
+    "load_study",
+    "Study",
+]
+
+#: Version of the study.toml format read by this module.
+STUDY_FORMAT_VERSION = 1
+
+#: Pipeline stages in execution order.
+STAGES = ("screen", "design", "fit", "optimise", "validate", "report")
+
+
+class StudyConfigError(ValueError):
+    """A study file that cannot be used; the message names the file and the field."""
+
+
+# -- configuration ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ScreeningConfig:
+    design: str = "full-factorial"
+    generators: tuple[str, ...] = ()
+    alpha: float = 0.05
+    method: str = "auto"
+    interactions: bool = True
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """One experiment: a simulator with a fixed setup, its parameters and its targets."""
+
+    name: str
+    simulator: str
+    setup: Mapping
+    parameters: tuple[str, ...]
+    targets: tuple[Target, ...]
+    monitor: tuple[str, ...] = ()
+    design_runs: int = 50
+    design_seed: int | None = None
+    screening: ScreeningConfig | None = None
+    description: str = ""
+
+    @property
+    def responses(self) -> tuple[str, ...]:
+        """Responses the simulator must return: targets first, then monitored ones."""
+        return tuple(t.response for t in self.targets) + tuple(self.monitor)
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    """A parsed and validated study.toml (paths resolved against the file's folder)."""
+
+    path: Path
+    name: str
+    parameters: ParameterSpace
+    experiments: dict[str, ExperimentConfig]
+    store: Path
+    output: Path
+    random_state: int = 0
+    description: str = ""
+    simulator_modules: tuple[str, ...] = ()
+    kernels: tuple[str, ...] = ("matern12", "matern32", "matern52", "rbf")
+    cv_folds: int = 5
+    holdout_fraction: float = 0.1
+    gp_restarts: int = 5
+    opt_starts: int = 8
+    opt_maxiter: int | None = None
+    opt_parameters: tuple[str, ...] | None = None
+    workers: int | None = None
+    retries: int = 2
+    threads: int = 1
+    scheduler: str | None = None
+    validate: bool = True
+
+
+class _Fields:
+    """Typed accessors over one TOML table that report errors as ``file: [table] key: ...``."""
+
+    def __init__(self, path: Path, table: str, data, allowed: Sequence[str]):
+        self.path, self.table = path, table
+        if not isinstance(data, Mapping):
+            self.fail("", f"must be a table, got {type(data).__name__}")
+        self.data = data
+        unknown = sorted(set(data) - set(allowed))
+        if unknown:
+            self.fail(
+                unknown[0],
+                f"unknown key (allowed here: {', '.join(sorted(allowed)) or 'none'})",
+            )
+
+    def where(self, key: str) -> str:
+        t = f"[{self.table}]" if self.table else "top level"
+        return f"{t} {key}".strip() if key else t
+
+    def fail(self, key: str, msg: str):
+        raise StudyConfigError(f"{self.path}: {self.where(key)}: {msg}")
+
+    def get(self, key, kind, default=None, required=False):
+        if key not in self.data:
+            if required:
+                self.fail(key, "missing (required)")
+            return default
+        v = self.data[key]
+        ok = {
+            "str": isinstance(v, str),
+            "int": isinstance(v, int) and not isinstance(v, bool),
+            "num": isinstance(v, (int, float)) and not isinstance(v, bool),
+            "bool": isinstance(v, bool),
+            "list": isinstance(v, list),
+            "table": isinstance(v, Mapping),
+        }[kind]
+        if not ok:
+            names = {
+                "num": "a number",
+                "int": "an integer",
+                "str": "a string",
+                "bool": "true/false",
+            }
+            self.fail(key, f"must be {names.get(kind, 'a ' + kind)}, got {v!r}")
+        if kind == "num" and not math.isfinite(v):
+            self.fail(key, f"must be finite, got {v!r}")
+        return v
+
+    def str_list(self, key, default=None, required=False):
+        v = self.get(key, "list", default, required)
+        if v is not None and not all(isinstance(s, str) for s in v):
+            self.fail(key, "must be a list of strings")
+        return v
+
+
+_TOP_KEYS = (
+    "version",
+    "name",
+    "description",
+    "store",
+    "output",
+    "random_state",
+    "simulator_modules",
+    "parameters",
+    "experiments",
+    "execution",
+    "surrogate",
+    "optimisation",
+    "validation",
+)
+
+
+def load_study(path: str | Path) -> StudyConfig:
+    """Parse and validate a study.toml; raises :class:`StudyConfigError` naming the field."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise FileNotFoundError(f"study file {path} not found") from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise StudyConfigError(f"{path}: malformed TOML: {exc}") from exc
+    return _parse(path, raw)
+
+
+def _parse(path: Path, raw: Mapping) -> StudyConfig:
+    top = _Fields(path, "", raw, _TOP_KEYS)
+    version = top.get("version", "int", required=True)
+    if version != STUDY_FORMAT_VERSION:
+        top.fail(
+            "version",
+            f"this flexparcel reads study format version {STUDY_FORMAT_VERSION}, "
+            f"the file says {version}",
+        )
+    base = path.parent
+    name = top.get("name", "str", path.stem)
+    random_state = top.get("random_state", "int", 0)
+    modules = tuple(top.str_list("simulator_modules", []))
+
+    # parameters
+    ptable = top.get("parameters", "table", required=True)
+    if not ptable:
+        top.fail("parameters", "no parameters defined")
+    params = []
+    for pname, pdata in ptable.items():
+        f = _Fields(
+            path,
+            f"parameters.{pname}",
+            pdata,
+            ("bounds", "unit", "scale", "nominal", "description"),
+        )
+        bounds = f.get("bounds", "list", required=True)
+        if len(bounds) != 2 or not all(
+            isinstance(b, (int, float)) and not isinstance(b, bool) for b in bounds
+        ):
+            f.fail("bounds", f"must be [lower, upper] (two numbers), got {bounds!r}")
+        lo, hi = float(bounds[0]), float(bounds[1])
+        if not lo < hi:
+            f.fail("bounds", f"lower bound {bounds[0]} must be below upper bound {bounds[1]}")
+        scale = f.get("scale", "str", "linear")
+        nominal = f.get("nominal", "num")
+        try:
+            params.append(
+                Parameter(
+                    pname,
+                    lo,
+                    hi,
+                    unit=f.get("unit", "str", ""),
+                    scale=scale,
+                    nominal=None if nominal is None else float(nominal),
+                    description=f.get("description", "str", ""),
+                )
+            )
+        except ValueError as exc:
+            f.fail("", str(exc))
+    space = ParameterSpace(params)
+
+    # experiments
+    etable = top.get("experiments", "table", required=True)
+    if not etable:
+        top.fail("experiments", "no experiments defined")
+    experiments = {}
+    for ename, edata in etable.items():
+        experiments[ename] = _parse_experiment(path, ename, edata, space)
+    used = {p for e in experiments.values() for p in e.parameters}
+    unused = [p for p in space.names if p not in used]
+    if unused:
+        _Fields(path, f"parameters.{unused[0]}", {}, ()).fail(
+            "", "not used by any experiment (list it in an experiment's parameters or remove it)"
+        )
+
+    ex = _Fields(
+        path,
+        "execution",
+        top.get("execution", "table", {}),
+        ("workers", "retries", "threads", "scheduler"),
+    )
+    workers = ex.get("workers", "int")
+    if workers is not None and workers < 0:
+        ex.fail("workers", "must be >= 0 (0 runs in this process)")
+    retries = ex.get("retries", "int", 2)
+    if retries < 0:
+        ex.fail("retries", "must be >= 0")
+    threads = ex.get("threads", "int", 1)
+    if threads < 1:
+        ex.fail("threads", "must be >= 1")
+
+    su = _Fields(
+        path,
+        "surrogate",
+        top.get("surrogate", "table", {}),
+        ("kernels", "cv_folds", "holdout_fraction", "restarts"),
+    )
+    kernels = tuple(su.str_list("kernels", list(KERNELS)))
+    bad = [k for k in kernels if k not in KERNELS]
+    if bad or not kernels:
+        su.fail("kernels", f"unknown kernel {bad[0] if bad else ''!r}; choose from {list(KERNELS)}")
+    cv_folds = su.get("cv_folds", "int", 5)
+    if cv_folds < 2:
+        su.fail("cv_folds", "must be >= 2")
+    holdout = float(su.get("holdout_fraction", "num", 0.1))
+    if not 0.0 <= holdout < 0.5:
+        su.fail("holdout_fraction", "must lie in [0, 0.5)")
+    restarts = su.get("restarts", "int", 5)
+    if restarts < 0:
+        su.fail("restarts", "must be >= 0")
+
+    op = _Fields(
+        path,
+        "optimisation",
+        top.get("optimisation", "table", {}),
+        ("starts", "maxiter", "parameters"),
+    )
+    starts = op.get("starts", "int", 8)
+    if starts < 1:
+        op.fail("starts", "must be >= 1")
+    maxiter = op.get("maxiter", "int")
+    opt_params = op.str_list("parameters")
+    if opt_params is not None:
+        for p in opt_params:
+            if p not in space:
+                op.fail(
+                    "parameters", f"unknown parameter {p!r} (defined: {', '.join(space.names)})"
+                )
+    va = _Fields(path, "validation", top.get("validation", "table", {}), ("enabled",))
+
+    return StudyConfig(
+        path=path,
+        name=name,
+        description=top.get("description", "str", ""),
+        parameters=space,
+        experiments=experiments,
+        store=(base / top.get("store", "str", f"{path.stem}.sqlite")).resolve(),
+        output=(base / top.get("output", "str", f"{path.stem}-report")).resolve(),
+        random_state=random_state,
+        simulator_modules=modules,
+        kernels=kernels,
+        cv_folds=cv_folds,
+        holdout_fraction=holdout,
+        gp_restarts=restarts,
+        opt_starts=starts,
+        opt_maxiter=maxiter,
+        opt_parameters=tuple(opt_params) if opt_params is not None else None,
+        workers=workers,
+        retries=retries,
+        threads=threads,
+        scheduler=ex.get("scheduler", "str"),
+        validate=va.get("enabled", "bool", True),
+    )
+
+
+def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> ExperimentConfig:
+    t = f"experiments.{ename}"
+    f = _Fields(
+        path,
+        t,
+        edata,
+        (
+            "simulator",
+            "setup",
+            "parameters",
+            "targets",
+            "monitor",
+            "design",
+            "screening",
+            "description",
+        ),
+    )
+    simulator = f.get("simulator", "str", required=True)
+    setup = dict(f.get("setup", "table", {}))
+    pnames = f.str_list("parameters", space.names)
+    for p in pnames:
+        if p not in space:
+            f.fail("parameters", f"unknown parameter {p!r} (defined: {', '.join(space.names)})")
+    if len(set(pnames)) != len(pnames) or not pnames:
+        f.fail("parameters", "must list distinct parameters, at least one")
+    ttable = f.get("targets", "table")
+    if not ttable:
+        f.fail("targets", "missing: every experiment needs at least one target response")
+    targets = []
+    for rname, tdata in ttable.items():
+        if isinstance(tdata, (int, float)) and not isinstance(tdata, bool):
+            tdata = {"value": tdata}
+        tf = _Fields(path, f"{t}.targets.{rname}", tdata, ("value", "weight", "spread", "unit"))
+        value = tf.get("value", "num", required=True)
+        weight = tf.get("weight", "num")
+        spread = tf.get("spread", "num")
+        if weight is not None and weight <= 0:
+            tf.fail("weight", "must be > 0")
+        if spread is not None and spread < 0:
+            tf.fail("spread", "must be >= 0")
+        targets.append(
+            Target(
+                ename,
+                rname,
+                float(value),
+                weight=None if weight is None else float(weight),
+                spread=None if spread is None else float(spread),
+                unit=tf.get("unit", "str", ""),
+            )
+        )
+    monitor = tuple(f.str_list("monitor", []))
+    d = _Fields(path, f"{t}.design", f.get("design", "table", {}), ("runs", "seed"))
+    runs = d.get("runs", "int", 50)
+    if runs < 2:
+        d.fail("runs", "must be >= 2")
+    screening = None
+    if "screening" in edata:
+        s = _Fields(
+            path,
+            f"{t}.screening",
+            f.get("screening", "table"),
+            ("design", "generators", "alpha", "method", "interactions"),
+        )
+        design = s.get("design", "str", "full-factorial")
+        if design not in ("full-factorial", "fractional-factorial"):
+            s.fail("design", "must be 'full-factorial' or 'fractional-factorial'")
+        generators = tuple(s.str_list("generators", []))
+        if design == "fractional-factorial" and not generators:
+            s.fail("generators", "a fractional factorial needs generators, e.g. ['E = ABCD']")
+        if design == "full-factorial" and generators:
+            s.fail("generators", "only a fractional-factorial design takes generators")
+        alpha = float(s.get("alpha", "num", 0.05))
+        if not 0 < alpha < 1:
+            s.fail("alpha", "must lie in (0, 1)")
+        method = s.get("method", "str", "auto")
+        if method not in ("auto", "anova", "lenth"):
+            s.fail("method", "must be 'auto', 'anova' or 'lenth'")
+        if len(pnames) < 2:
+            s.fail("", "screening needs at least two parameters")
+        try:
+            if generators:
+                fractional_factorial(len(pnames), generators)
+        except ValueError as exc:
+            s.fail("generators", str(exc))
+        screening = ScreeningConfig(
+            design, generators, alpha, method, s.get("interactions", "bool", True)
+        )
+    return ExperimentConfig(
+        name=ename,
+        simulator=simulator,
+        setup=setup,
+        parameters=tuple(pnames),
+        targets=tuple(targets),
+        monitor=monitor,
+        design_runs=runs,
+        design_seed=d.get("seed", "int"),
+        screening=screening,
+        description=f.get("description", "str", ""),
+    )
+
+
+# -- pipeline --------------------------------------------------------------------------------
+
+
+def _seed(*parts) -> int:
+    """A 32-bit seed derived from the study seed and names (independent of experiment order)."""
+    h = hashlib.sha256(json.dumps([str(p) for p in parts]).encode()).digest()
+    return int.from_bytes(h[:4], "big")
+
+
+def _fingerprint(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:16]
+
+
+class Study:
+    """The calibration pipeline of one study file over its store.
+
+    Parameters
+    ----------
+    config:
+        A :class:`StudyConfig` (see :func:`load_study`) or the path of a study.toml.
+    store, output:
+        Override the store file and the report folder of the configuration.
+    workers, scheduler, retries:
+        Override the ``[execution]`` options (``scheduler``: a Dask scheduler address).
+    retry_failed:
+        Give runs that failed in earlier campaigns a fresh retry budget.
+    progress:
+        Show progress bars.
+    """
+
+    def __init__(
+        self,
+        config: StudyConfig | str | Path,
+        *,
+        store: str | Path | None = None,
+        output: str | Path | None = None,
+        workers: int | None = None,
+        scheduler=None,
+        retries: int | None = None,
+        retry_failed: bool = False,
+        progress: bool = True,
+    ):
+        self.config = config if isinstance(config, StudyConfig) else load_study(config)
+        c = self.config
+        self.store_path = Path(store) if store is not None else c.store
+        self.output = Path(output) if output is not None else c.output
+        self.workers = workers if workers is not None else c.workers
+        self.scheduler = scheduler if scheduler is not None else c.scheduler
+        self.retries = retries if retries is not None else c.retries
+        self.retry_failed = retry_failed
+        self.progress = progress
+        self.campaigns: dict[str, CampaignReport] = {}
+        self._store: StudyStore | None = None
+
+    # -- plumbing ----------------------------------------------------------------------------
+
+    @property
+    def store(self) -> StudyStore:
+        if self._store is None:
+            self._store = StudyStore(self.store_path)
+            if self._store.get_meta("study_name") is None:
+                self._store.set_meta("study_name", self.config.name)
+        return self._store
+
+    def close(self) -> None:
+        if self._store is not None:
+            self._store.close()
+            self._store = None
+
+    def __enter__(self) -> Study:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _spec(self, exp: ExperimentConfig, params: Mapping[str, float]) -> RunSpec:
+        info = get_simulator(exp.simulator, self.config.simulator_modules)
+        return RunSpec(exp.simulator, info.version, exp.setup, params)
+
+    def _campaign(self, label: str, batches: list[tuple[ExperimentConfig, list[str]]]):
+        keys, expect = [], {}
+        for exp, ks in batches:
+            keys += ks
+            for k in ks:
+                expect[k] = tuple(dict.fromkeys(expect.get(k, ()) + exp.responses))
+        rep = run_campaign(
+            self.store,
+            keys,
+            workers=self.workers,
+            scheduler=self.scheduler,
+            retries=self.retries,
+            retry_failed=self.retry_failed,
+            expect=expect,
+            modules=self.config.simulator_modules,
+            threads=self.config.threads,
+            progress=self.progress,
+            desc=label,
+        )
+        self.campaigns[label] = rep
+        return rep
+
+    def _done_rows(self, stage: str, exp: ExperimentConfig, limit: int | None = None):
+        keys = self.store.design_keys(stage, exp.name)
+        if limit is not None:
+            keys = keys[:limit]
+        rows = self.store.get_runs(keys)
+        return rows, [r for r in rows if r["status"] == "done"]
+
+    def _require(self, stage: str, experiment: str, needed_by: str, hint: str):
+        res = self.store.get_result(stage, experiment)
+        if res is None:
+            where = f" of experiment '{experiment}'" if experiment else ""
+            raise StudyConfigError(
+                f"stage '{needed_by}'{where} needs the results of stage '{hint}': "
+                f"run `flexparcel calibrate {self.config.path.name} --stage {hint}` first"
+            )
+        return res
+
+    def active_parameters(self, exp: ExperimentConfig) -> list[str]:
+        """Parameters varied in the experiment's design: the screening result, or all."""
+        if exp.screening is None:
+            return list(exp.parameters)
+        res = self._require("screening", exp.name, "design", "screen")
+        return list(res["significant"])
+
+    # -- stages ------------------------------------------------------------------------------
+
+    def screen(self) -> dict:
+        """Run and analyse the screening factorials; returns ``{experiment: result}``."""
+        batches, designs = [], {}
+        for exp in self.config.experiments.values():
+            if exp.screening is None:
+                continue
+            sub = self.config.parameters.subspace(exp.parameters)
+            if exp.screening.design == "full-factorial":
+                C = full_factorial(sub.dim)
+            else:
+                C = fractional_factorial(sub.dim, exp.screening.generators)
+            X = sub.from_coded(C)
+            keys = self.store.add_design(
+                "screening", exp.name, [self._spec(exp, p) for p in sub.as_dicts(X)]
+            )
+            batches.append((exp, keys))
+            designs[exp.name] = (C, keys)
+        if not batches:
+            return {}
+        self._campaign("screening", batches)
+        out = {}
+        for exp, _ in batches:
+            C, keys = designs[exp.name]
+            rows = self.store.get_runs(keys)
+            failed = [r["run_key"] for r in rows if r["status"] != "done"]
+            if failed:
+                raise RuntimeError(
+                    f"screening of '{exp.name}': {len(failed)} of {len(rows)} factorial runs "
+                    "failed; an ANOVA needs the complete design (see the store's error texts, "
+                    "then rerun with --retry-failed)"
+                )
+            responses = {r: np.array([row["responses"][r] for row in rows]) for r in exp.responses}
+            sc = exp.screening
+            significant, fitted = screen_responses(
+                C,
+                responses,
+                list(exp.parameters),
+                alpha=sc.alpha,
+                interactions=sc.interactions,
+                method=sc.method,
+            )
+            result = {
+                "design": sc.design,
+                "generators": list(sc.generators),
+                "coded": C.tolist(),
+                "run_keys": keys,
+                "parameters": list(exp.parameters),
+                "responses": {r: v.tolist() for r, v in responses.items()},
+                "anova": {r: s.to_dict() for r, s in fitted.items()},
+                "significant": significant,
+                "frozen": {
+                    p: self.config.parameters[p].nominal_value
+                    for p in exp.parameters
+                    if p not in significant
+                },
+            }
+            if not significant:
+                raise RuntimeError(
+                    f"screening of '{exp.name}' found no significant parameter at alpha = "
+                    f"{sc.alpha}; nothing to calibrate against its targets"
+                )
+            self.store.put_result("screening", exp.name, result)
+            out[exp.name] = result
+        return out
+
+    def design(self) -> dict:
+        """Run the Latin-hypercube designs (extending earlier ones); returns info per experiment."""
+        batches, out = [], {}
+        for exp in self.config.experiments.values():
+            active = self.active_parameters(exp)
+            sub = self.config.parameters.subspace(active)
+            frozen = {
+                p: self.config.parameters[p].nominal_value
+                for p in exp.parameters
+                if p not in active
+            }
+            seed = (
+                exp.design_seed
+                if exp.design_seed is not None
+                else _seed(self.config.random_state, exp.name, "design")
+            )
+            info = get_simulator(exp.simulator, self.config.simulator_modules)
+            fp = _fingerprint(
+                {
+                    "active": [[p.name, p.lower, p.upper, p.scale] for p in sub.parameters],
+                    "frozen": frozen,
+                    "simulator": [exp.simulator, info.version],
+                    "setup": exp.setup,
+                    "seed": seed,
+                }
+            )
+            prev = self.store.get_result("design", exp.name)
+            if prev is not None and prev["fingerprint"] != fp:
+                raise StudyConfigError(
+                    f"the design of experiment '{exp.name}' in {self.store_path} was made for "
+                    f"other parameters, bounds, setup or seed (active then: "
+                    f"{', '.join(prev['active'])}; now: {', '.join(active)}); run "
+                    "`flexparcel calibrate ... --reset design` to redo it (runs already "
+                    "simulated are kept and reused where they match)"
+                )
+            n_prev = len(self.store.design_keys("design", exp.name)) if prev else 0
+            if n_prev == 0:
+                U = latin_hypercube(exp.design_runs, sub.dim, random_state=seed)
+            elif exp.design_runs > n_prev:
+                old = self.store.get_runs(self.store.design_keys("design", exp.name))
+                U_old = sub.to_unit(sub.from_dicts(r["params"] for r in old))
+                U_new = extend_latin_hypercube(
+                    U_old, exp.design_runs - n_prev, random_state=_seed(seed, n_prev)
+                )
+                U = np.vstack([U_old, U_new])
+            else:
+                U = None
+            if U is not None:
+                points = [dict(p, **frozen) for p in sub.as_dicts(sub.from_unit(U))]
+                if n_prev:
+                    # Keep the stored parameter values of the old runs bit for bit.
+                    old_params = [r["params"] for r in old]
+                    points[:n_prev] = old_params
+                keys = self.store.add_design(
+                    "design", exp.name, [self._spec(exp, p) for p in points]
+                )
+            keys = self.store.design_keys("design", exp.name)[: exp.design_runs]
+            self.store.put_result(
+                "design",
+                exp.name,
+                {
+                    "fingerprint": fp,
+                    "active": active,
+                    "frozen": frozen,
+                    "seed": seed,
+                    "runs": exp.design_runs,
+                    "stored_runs": len(self.store.design_keys("design", exp.name)),
+                },
+            )
+            batches.append((exp, keys))
+            out[exp.name] = {"active": active, "frozen": frozen, "runs": len(keys)}
+        self._campaign("design", batches)
+        for exp, keys in batches:
+            counts = self.store.status_counts(keys)
+            out[exp.name]["status"] = counts
+        return out
+
+    def _surrogates(self, exp: ExperimentConfig, fit: dict) -> dict[str, GPRSurrogate]:
+        sub = self.config.parameters.subspace(fit["active"])
+        rows = self.store.get_runs(fit["run_keys"])
+        X = sub.from_dicts(r["params"] for r in rows)
+        return {
+            r: GPRSurrogate.from_dict(
+                fit["responses"][r], sub, X, [row["responses"][r] for row in rows]
+            )
+            for r in fit["responses"]
+        }
+
+    def fit(self) -> dict:
+        """Fit one GPR surrogate per target response; returns ``{experiment: result}``."""
+        c = self.config
+        out = {}
+        jobs = [(e, t) for e in c.experiments.values() for t in e.targets]
+        bar = None
+        if self.progress:
+            try:
+                from tqdm.auto import tqdm
+
+                bar = tqdm(total=len(jobs), desc="fit", unit="model", leave=False)
+            except ImportError:  # pragma: no cover
+                bar = None
+        for exp in c.experiments.values():
+            design = self._require("design", exp.name, "fit", "design")
+            active = design["active"]
+            sub = c.parameters.subspace(active)
+            rows, done = self._done_rows("design", exp, exp.design_runs)
+            if not rows:
+                raise StudyConfigError(
+                    f"stage 'fit' of experiment '{exp.name}' found no design runs: run "
+                    "--stage design first"
+                )
+            n_failed = len(rows) - len(done)
+            pending = [r for r in rows if r["status"] in ("pending", "running")]
+            if pending:
+                raise RuntimeError(
+                    f"stage 'fit' of experiment '{exp.name}': {len(pending)} design runs have "
+                    "not been executed yet; run --stage design (it resumes) first"
+                )
+            X = sub.from_dicts(r["params"] for r in done)
+            result = {
+                "active": active,
+                "run_keys": [r["run_key"] for r in done],
+                "n_failed": n_failed,
+                "responses": {},
+                "range": {},
+            }
+            for t in exp.targets:
+                y = np.array([r["responses"][t.response] for r in done])
+                gp = GPRSurrogate(
+                    sub,
+                    kernels=c.kernels,
+                    cv_folds=c.cv_folds,
+                    holdout_fraction=c.holdout_fraction,
+                    n_restarts_optimizer=c.gp_restarts,
+                    random_state=_seed(c.random_state, exp.name, t.response, "gpr"),
+                ).fit(X, y)
+                result["responses"][t.response] = gp.to_dict()
+                result["range"][t.response] = [float(y.min()), float(y.max())]
+                if bar is not None:
+                    bar.update(1)
+            self.store.put_result("fit", exp.name, result)
+            out[exp.name] = result
+        if bar is not None:
+            bar.close()
+        return out
+
+    def calibrated_parameters(self) -> list[str]:
+        """Parameters the optimiser varies: ``[optimisation].parameters`` or all active ones."""
+        c = self.config
+        if c.opt_parameters is not None:
+            return list(c.opt_parameters)
+        names: list[str] = []
+        for exp in c.experiments.values():
+            fit = self._require("fit", exp.name, "optimise", "fit")
+            names += [p for p in fit["active"] if p not in names]
+        return [p for p in c.parameters.names if p in names]
+
+    def optimise(self) -> dict:
+        """Minimise the weighted error on the surrogates; returns the optimum and predictions."""
+        c = self.config
+        fits = {e: self._require("fit", e, "optimise", "fit") for e in c.experiments}
+        surrogates = {e: self._surrogates(c.experiments[e], fits[e]) for e in c.experiments}
+        names = self.calibrated_parameters()
+        space = c.parameters.subspace(names)
+        nominal = {p.name: p.nominal_value for p in c.parameters.parameters}
+        targets = [t for e in c.experiments.values() for t in e.targets]
+        z_target = np.array([t.value for t in targets])
+        weights = np.array(
+            [
+                t.weight
+                if t.weight is not None
+                else 1.0 / _span(fits[t.experiment]["range"][t.response], t.key)
+                for t in targets
+            ]
+        )
+        # Per experiment: columns of its active parameters in the calibrated vector (or the
+        # nominal value for an active parameter the user excluded from the optimisation).
+        plan = []
+        for e, fit in fits.items():
+            cols = [names.index(p) if p in names else None for p in fit["active"]]
+            fixed = np.array([nominal[p] for p in fit["active"]])
+            rs = [t.response for t in c.experiments[e].targets]
+            plan.append((e, cols, fixed, rs))
+
+        def predict_all(x, return_std=False):
+            preds, stds = [], []
+            for e, cols, fixed, rs in plan:
+                xe = fixed.copy()
+                for j, col in enumerate(cols):
+                    if col is not None:
+                        xe[j] = x[col]
+                for r in rs:
+                    if return_std:
+                        m, s = surrogates[e][r].predict(xe[None, :], return_std=True)
+                        preds.append(float(m[0]))
+                        stds.append(float(s[0]))
+                    else:
+                        preds.append(float(surrogates[e][r].predict(xe[None, :])[0]))
+            return (np.array(preds), np.array(stds)) if return_std else np.array(preds)
+
+        opt = NelderMeadCalibrator(
+            n_starts=c.opt_starts,
+            maxiter=c.opt_maxiter,
+            random_state=_seed(c.random_state, "optimise"),
+        ).fit(predict_all, space, z_target, weights)
+        pred, std = predict_all(opt.x_, return_std=True)
+        optimum = dict(nominal)
+        optimum.update({n: float(v) for n, v in zip(names, opt.x_, strict=True)})
+        result = {
+            "calibrated": names,
+            "optimum": optimum,
+            "optimum_unit": {n: float(v) for n, v in zip(names, opt.u_, strict=True)},
+            "error": opt.error_,
+            "error_check": weighted_error(z_target, pred, weights),
+            "targets": [
+                {
+                    "experiment": t.experiment,
+                    "response": t.response,
+                    "unit": t.unit,
+                    "target": t.value,
+                    "weight": float(w),
+                    "weight_source": "given" if t.weight is not None else "1/range",
+                    "predicted": float(p),
+                    "std": float(s),
+                    "spread": t.spread,
+                }
+                for t, w, p, s in zip(targets, weights, pred, std, strict=True)
+            ],
+            "starts": opt.starts_,
+        }
+        self.store.put_result("optimise", "", result)
+        return result
+
+    def validate(self) -> dict:
+        """Re-run every experiment's simulator at the optimum; returns the comparison."""
+        c = self.config
+        opt = self._require("optimise", "", "validate", "optimise")
+        batches = []
+        for exp in c.experiments.values():
+            params = {p: opt["optimum"][p] for p in exp.parameters}
+            keys = self.store.add_design("validation", exp.name, [self._spec(exp, params)])
+            batches.append((exp, keys))
+        self._campaign("validation", batches)
+        pred = {(t["experiment"], t["response"]): t for t in opt["targets"]}
+        rows_out = []
+        for exp, keys in batches:
+            run = self.store.get_runs(keys)[0]
+            for t in exp.targets:
+                p = pred[(exp.name, t.response)]
+                sim = run["responses"][t.response] if run["status"] == "done" else None
+                rows_out.append(
+                    {
+                        "experiment": exp.name,
+                        "response": t.response,
+                        "unit": t.unit,
+                        "target": t.value,
+                        "predicted": p["predicted"],
+                        "std": p["std"],
+                        "simulated": sim,
+                        "status": run["status"],
+                        "error": run["error"] if run["status"] != "done" else None,
+                        "wall_s": run["wall_s"],
+                        "run_key": run["run_key"],
+                        "within_spread": (
+                            None
+                            if t.spread is None or sim is None
+                            else bool(abs(sim - t.value) <= t.spread)
+                        ),
+                    }
+                )
+        result = {"rows": rows_out, "optimum": opt["optimum"]}
+        self.store.put_result("validation", "", result)
+        return result
+
+    def report(self) -> Path:
+        """Write ``results.json`` and ``report.html`` into the output folder; returns the HTML."""
+        from flexparcel.calibration.report import write_report
+
+        return write_report(self)
+
+    def reset(self, stage: str) -> None:
+        """Forget a stage's design points and results and those of all later stages.
+
+        Simulated runs stay in the store and are reused where a redone design hits them again.
+        """
+        if stage not in STAGES:
+            raise ValueError(f"unknown stage {stage!r}; stages: {', '.join(STAGES)}")
+        names = {
+            "screen": ("screening", "screening"),
+            "design": ("design", "design"),
+            "fit": (None, "fit"),
+            "optimise": (None, "optimise"),
+            "validate": ("validation", "validation"),
+            "report": (None, None),
+        }
+        for s in STAGES[STAGES.index(stage) :]:
+            design, result = names[s]
+            if design:
+                self.store.delete_design(design)
+            if result:
+                self.store.delete_results(result)
+
+    def run(self, stages: Sequence[str] = STAGES) -> dict:
+        """Run ``stages`` in pipeline order; returns ``{stage: result}``."""
+        unknown = [s for s in stages if s not in STAGES]
+        if unknown:
+            raise ValueError(f"unknown stage {unknown[0]!r}; stages: {', '.join(STAGES)}")
+        out = {}
+        for s in STAGES:
+            if s not in stages:
+                continue
+            if s == "validate" and not self.config.validate:
+                continue
+            out[s] = getattr(self, s)()
+        return out
+
+
+def _span(rng: Sequence[float], key: str) -> float:
+    span = float(rng[1]) - float(rng[0])
+    if not span > 0:
+        raise ValueError(
+            f"target {key}: the response does not vary over its design, so its default weight "
+            "1/range is undefined; give a weight in the study file"
+        )
+    return span

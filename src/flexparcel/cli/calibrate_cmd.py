@@ -1,0 +1,150 @@
+"""``flexparcel calibrate STUDY.toml``: run a calibration study (all stages or some).
+
+Stages: screen, design, fit, optimise, validate, report (see ``docs/calibration.md``). Every stage
+records its runs and results in the study store, so an interrupted command resumes where it
+stopped when run again, and a single stage can be run later with ``--stage``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["register", "run"]
+
+_STAGES = ("screen", "design", "fit", "optimise", "validate", "report")
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "calibrate",
+        help="parameterise a model: DoE, ANOVA screening, GPR surrogates, Nelder-Mead, validation",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("study", help="study file (study.toml, format in docs/calibration.md)")
+    p.add_argument(
+        "--stage",
+        action="append",
+        metavar="STAGE",
+        help=f"run only this stage (repeatable or comma separated): {', '.join(_STAGES)}, all",
+    )
+    p.add_argument(
+        "--reset",
+        metavar="STAGE",
+        choices=_STAGES,
+        help="forget the results of STAGE and all later stages first (simulated runs are kept)",
+    )
+    p.add_argument("--workers", type=int, help="local worker processes (0: run in this process)")
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://host:8786"
+    )
+    p.add_argument("--retries", type=int, help="extra attempts for a failed run")
+    p.add_argument(
+        "--retry-failed",
+        action="store_true",
+        help="give runs that failed in earlier campaigns a fresh retry budget",
+    )
+    p.add_argument("--store", metavar="PATH", help="study store file (overrides the study file)")
+    p.add_argument("--out", metavar="DIR", help="report folder (overrides the study file)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=run)
+
+
+def _stages(arg: list[str] | None) -> list[str]:
+    if not arg:
+        return list(_STAGES)
+    names = [s.strip() for a in arg for s in a.split(",") if s.strip()]
+    if "all" in names:
+        return list(_STAGES)
+    bad = [s for s in names if s not in _STAGES]
+    if bad:
+        raise ValueError(f"unknown stage {bad[0]!r}; stages: {', '.join(_STAGES)}, all")
+    return names
+
+
+def run(args: argparse.Namespace) -> int:
+    from flexparcel.calibration.study import Study
+
+    stages = _stages(args.stage)
+    study = Study(
+        args.study,
+        store=args.store,
+        output=args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        retries=args.retries,
+        retry_failed=args.retry_failed,
+        progress=not args.no_progress and sys.stderr.isatty(),
+    )
+    try:
+        if args.reset:
+            study.reset(args.reset)
+        for stage in _STAGES:
+            if stage not in stages:
+                continue
+            if stage == "validate" and not study.config.validate:
+                continue
+            print(f"== {stage}", flush=True)
+            try:
+                result = getattr(study, stage)()
+            except RuntimeError as exc:
+                print(f"flexparcel calibrate: {stage} failed: {exc}", file=sys.stderr)
+                return 1
+            _summarise(study, stage, result)
+        failed = sum(len(c.failed) for c in study.campaigns.values())
+        if failed:
+            print(f"warning: {failed} run(s) failed after all retries (see the report)")
+    finally:
+        study.close()
+    return 0
+
+
+def _summarise(study, stage: str, result) -> None:
+    camp = study.campaigns.get({"screen": "screening", "validate": "validation"}.get(stage, stage))
+    if camp is not None and stage in ("screen", "design", "validate"):
+        print(
+            f"   runs: {camp.requested} requested, {camp.already_done} already done, "
+            f"{camp.succeeded} run now, {len(camp.failed)} failed"
+            + (
+                f" ({camp.interrupted_reset} interrupted runs resumed)"
+                if camp.interrupted_reset
+                else ""
+            )
+            + (f" on {camp.executor}" if camp.executor else "")
+            + f", {camp.wall_s:.1f} s"
+        )
+    if stage == "screen":
+        for exp, res in result.items():
+            print(f"   {exp}: significant {', '.join(res['significant'])}")
+            if res["frozen"]:
+                frozen = ", ".join(f"{k} = {v:.4g}" for k, v in res["frozen"].items())
+                print(f"   {exp}: frozen {frozen}")
+    elif stage == "design":
+        for exp, res in result.items():
+            print(f"   {exp}: {res['runs']} runs over {', '.join(res['active'])}: {res['status']}")
+    elif stage == "fit":
+        for exp, res in result.items():
+            for r, g in res["responses"].items():
+                print(
+                    f"   {exp}.{r}: kernel {g['kernel']}, CV RMSE {g['cv_rmse'][g['kernel']]:.4g}, "
+                    f"hold-out RMSE {g['holdout_rmse']:.4g}"
+                )
+    elif stage == "optimise":
+        for n in result["calibrated"]:
+            print(f"   {n} = {result['optimum'][n]:.6g}")
+        print(f"   weighted error {result['error']:.4g}")
+        for t in result["targets"]:
+            print(
+                f"   {t['experiment']}.{t['response']}: target {t['target']:.4g}, predicted "
+                f"{t['predicted']:.4g} ± {t['std']:.2g}"
+            )
+    elif stage == "validate":
+        for v in result["rows"]:
+            sim = "failed" if v["simulated"] is None else f"{v['simulated']:.4g}"
+            print(
+                f"   {v['experiment']}.{v['response']}: target {v['target']:.4g}, surrogate "
+                f"{v['predicted']:.4g}, simulated {sim}"
+            )
+    elif stage == "report":
+        print(f"   {result}")
