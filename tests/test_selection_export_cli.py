@@ -159,3 +159,13 @@ def test_cli_select_bad_file_reports_error(tmp_path, capsys):
     assert "[1, 31500] g" in err
     assert main(["select", "--out", str(tmp_path / "o")]) == 2
     assert "give either a survey file or --synthetic" in capsys.readouterr().err
+
+
+def test_example_script_runs(tmp_path, capsys):
+    import runpy
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "examples" / "selection_synthetic.py"
+    runpy.run_path(str(script))["main"](tmp_path)
+    assert "kept (1, 3, 4, 6), dropped (2, 5)" in capsys.readouterr().out
+    assert sorted(p.name for p in tmp_path.glob("*.toml")) == [f"C{k}.toml" for k in (1, 3, 4, 6)]

@@ -99,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
 
     if (args.survey is None) == (not args.synthetic):
         raise ValueError("give either a survey file or --synthetic (not both)")
+    if args.keep is not None and args.keep < 1:
+        raise ValueError(f"--keep {args.keep}: keep at least 1 cluster")
     weights = _parse_weights(args.weight)
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)

@@ -293,7 +293,8 @@ def consignment_from_centroid(
         unit = schema.column(name).unit or name.rsplit("_", 1)[-1]
         if unit not in table_:
             raise ValueError(
-                f"column {name!r}: unit {unit!r} unknown (allowed: {', '.join(table_)})"
+                f"column {name!r}: unit {unit!r} unknown (allowed: {', '.join(table_)}); "
+                "declare it as unit = ... in the schema"
             )
         return table_[unit]
 
