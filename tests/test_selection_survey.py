@@ -40,17 +40,21 @@ def _read(tmp_path: Path, *rows: str, header: str = HEADER):
 
 
 def test_reads_valid_csv_with_comments_case_and_missing(tmp_path):
-    s = _read(
+    path = _write(
         tmp_path,
-        "# a comment line",
+        "# a comment above the header",
+        HEADER,
         GOOD,
+        "",
         "A2,Kraft Paper  w/ Bubble Wrap,FLAT,yes,no,1,3,27.5,19,,140",
+        "#3,polybag,flat,false,false,2,4,29,22,2,180",  # after the header: data, not a comment
     )
-    assert s.ids == ("A1", "A2")
-    assert s.column_values("packaging") == ["polybag", "kraft paper w/ bubble wrap"]
-    assert s.column_values("content_movable") == [False, True]
-    assert s.column_values("filling_level") == [4, 3]
-    assert s.column_values("height_cm") == [2.0, None]
+    s = read_survey(path, synthetic_schema())
+    assert s.ids == ("A1", "A2", "#3")
+    assert s.column_values("packaging")[:2] == ["polybag", "kraft paper w/ bubble wrap"]
+    assert s.column_values("content_movable")[:2] == [False, True]
+    assert s.column_values("filling_level")[:2] == [4, 3]
+    assert s.column_values("height_cm")[:2] == [2.0, None]
     assert np.isnan(s.numeric[1, s.schema.numeric_columns.index(s.schema.column("height_cm"))])
 
 

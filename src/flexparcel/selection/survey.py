@@ -24,6 +24,7 @@ integer code matrix; missing values are NaN and -1 respectively.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import re
 import tomllib
@@ -443,7 +444,8 @@ def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, list[object]]]]:
     # utf-8-sig drops the byte-order mark that spreadsheet programs write.
     with path.open(newline="", encoding="utf-8-sig") as fh:
         text = fh.read()
-    # Lines starting with '#' are comments (the reference tables carry their source that way).
+    # Lines starting with '#' above the header are comments (the reference tables carry their
+    # source that way).
     first = next(
         (ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")), None
     )
@@ -451,15 +453,17 @@ def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, list[object]]]]:
         raise SurveyError(f"{path}: the file has no header line")
     # Delimiter: whichever of , ; TAB splits the header most (European exports use ';').
     delimiter = max((",", ";", "\t"), key=first.count)
-    reader = csv.reader(text.splitlines(), delimiter=delimiter)
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
     header: list[str] | None = None
     rows: list[tuple[int, list[object]]] = []
     for cells in reader:
         line = reader.line_num
-        if not cells or all(not c.strip() for c in cells) or cells[0].lstrip().startswith("#"):
+        if not cells or all(not c.strip() for c in cells):
             continue
         if header is None:
-            header = [c.strip() for c in cells]
+            # Comments only before the header: after it, "#12" may well be a consignment id.
+            if not cells[0].lstrip().startswith("#"):
+                header = [c.strip() for c in cells]
             continue
         if len(cells) != len(header):
             raise SurveyError(
@@ -769,8 +773,8 @@ def read_survey(
 
     ``schema`` is a :class:`SurveySchema`, a path to a schema TOML, or ``None`` to infer one
     (:func:`infer_schema`; ``exclude`` names columns to leave out, e.g. known labels). CSV files
-    may use ``,``, ``;`` or TAB; lines starting with ``#`` are comments; empty cells and
-    NA/NaN/null/none/? are missing values.
+    may use ``,``, ``;`` or TAB; lines starting with ``#`` above the header are comments; empty
+    cells and NA/NaN/null/none/? are missing values.
     """
     path = Path(path)
     header, numbered = _read_table(path)
