@@ -171,7 +171,7 @@ def gower_from_arrays(
     categorical_a : (n_a, q) int codes, negative = missing; ``None`` for q = 0.
     numeric_b, categorical_b : the second set; both ``None`` for the symmetric case.
     numeric_weights, categorical_weights : (p,), (q,) weights >= 0 (default 1).
-    ranges : (p,) ranges R_k > = 0 in the feature unit; default: from the data (a and b).
+    ranges : (p,) ranges R_k >= 0 in the feature unit; default: from the data (a and b).
     dtype : output dtype.
     chunk_elements : bound on the elements of one temporary block (memory).
     """
