@@ -293,12 +293,14 @@ def element_forces(tris, kl, xloc, r0ref, beta, pos, rot, vel, out):
 
 
 @nb.njit(cache=True)
-def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, c_vel, out_f, data, emap):
-    """Forces into ``out_f`` and tangent ``dF/d(x, spin) + c_vel * dF/d(v, omega)`` scattered
-    into CSR ``data`` through ``emap`` (m, 18, 18) of data indices. Returns strain energy [J].
+def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, data_c, emap):
+    """Forces into ``out_f``; stiffness ``dF/d(x, spin)`` scattered into CSR ``data_k`` and
+    damping ``dF/d(v, omega)`` into ``data_c`` through ``emap`` (m, 18, 18) of data indices.
+    Returns the strain energy [J].
 
-    ``dF/d(x, spin)`` is the complex-step derivative of the full co-rotational force (exact);
-    ``dF/d(v, omega) = beta B^T K_l B`` is the Rayleigh damping matrix C.
+    ``dF/d(x, spin)`` is the complex-step derivative of the full co-rotational force at fixed
+    velocities (exact, with all frame-rotation terms); ``dF/d(v, omega) = beta B^T K_l B`` is
+    the Rayleigh damping matrix C.
     """
     energy = 0.0
     h = _CS_STEP
@@ -326,10 +328,13 @@ def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, c_vel, out_f, d
                 fc, _ = _tri_force(xc, rc, v, kl[e], xloc[e], r0ref[e], beta[e])
                 rc[a] = r[a]
                 ke[:, 6 * a + 3 + i] = fc.imag / h
-        if c_vel != 0.0 and beta[e] != 0.0:
-            d, bg = _tri_kinematics(x, r, xloc[e], r0ref[e])
-            ke += (c_vel * beta[e]) * matmul(matmul(bg.T.copy(), kl[e].copy()), bg)
         for i in range(18):
             for j in range(18):
-                data[emap[e, i, j]] += ke[i, j]
+                data_k[emap[e, i, j]] += ke[i, j]
+        if beta[e] != 0.0:
+            d, bg = _tri_kinematics(x, r, xloc[e], r0ref[e])
+            ce = beta[e] * matmul(matmul(bg.T.copy(), kl[e].copy()), bg)
+            for i in range(18):
+                for j in range(18):
+                    data_c[emap[e, i, j]] += ce[i, j]
     return energy

@@ -35,20 +35,22 @@ def internal_forces(model: Model, positions, rotations, velocities) -> tuple[np.
 
 
 def internal_forces_and_tangent(
-    model: Model, positions, rotations, velocities, c_vel: float
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """Forces (n, 6), CSR data (nnz + 1,) of ``dF/dq + c_vel dF/dv`` and strain energy [J].
+    model: Model, positions, rotations, velocities
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Forces (n, 6), CSR data (nnz + 1,) of the stiffness ``K = dF/dq`` and of the damping
+    ``C = dF/dv``, and the strain energy [J].
 
     The last data entry is a trash slot collecting fixed-DOF entries; drop it with
     :func:`csr_from_data`.
     """
     out = np.zeros((model.node_count, 6))
-    data = np.zeros(model.nnz + 1)
+    data_k = np.zeros(model.nnz + 1)
+    data_c = np.zeros(model.nnz + 1)
     energy = shell.element_tangents(
         model.triangles, model.tri_kl, model.tri_xloc, model.tri_frame0, model.tri_beta,
-        positions, rotations, velocities, float(c_vel), out, data, model.tri_emap,
+        positions, rotations, velocities, out, data_k, data_c, model.tri_emap,
     )
-    return out, data, energy
+    return out, data_k, data_c, energy
 
 
 def external_forces(model: Model, time: float, rotations: np.ndarray, scale: float = 1.0):

@@ -34,6 +34,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.sparse as sp
 
 from flexparcel.elements.rotations import rotation_exp, rotation_log
 from flexparcel.integrate import assembly as asm
@@ -56,7 +57,7 @@ class IntegratorOptions:
     adaptive: bool = True
     tol_displacement: float = 2e-5
     """Local error tolerance per step on node displacements [m]."""
-    newton_tol: float = 1e-3
+    newton_tol: float = 1e-2
     """Newton stops when its estimated remaining error is below newton_tol * tol_displacement
     (and the rotation correction times the element size as well)."""
     max_newton: int = 12
@@ -102,7 +103,11 @@ class GeneralizedAlpha:
         self.stats = Stats()
         self.h = self.opt.dt_initial
         self._factor_h = None  # step size the current factorisation was built with
+        self._tangent = None  # (K data, C data) of the last tangent assembly
+        self._refresh_next = False
+        self._h_cap = np.inf
         self._free = model.free_index >= 0
+        self._free_ids = np.flatnonzero(self._free)
         self._mfree = model.mass.ravel()[self._free]
         tri = model.tri_xloc
         area = 0.5 * np.abs((tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
@@ -132,6 +137,26 @@ class GeneralizedAlpha:
         v1[fixed] = 0.0
         return a1, qdd, v1
 
+    def _increment_map(self, theta: np.ndarray) -> sp.csr_matrix:
+        """Block-diagonal d(increment)/d(spin correction) over the free DOFs: identity for
+        translations, the inverse left Jacobian T^-1(Theta) (3, 3) for each node's rotation."""
+        n = self.model.node_count
+        w = np.zeros((n, 3, 3))
+        w[:, 0, 1], w[:, 0, 2], w[:, 1, 2] = -theta[:, 2], theta[:, 1], -theta[:, 0]
+        w -= np.transpose(w, (0, 2, 1))
+        t2 = np.sum(theta * theta, axis=1)
+        small = t2 < 1e-4
+        tt = np.sqrt(np.where(small, 1.0, t2))
+        c = np.where(small, 1.0 / 12.0 + t2 / 720.0,
+                     (1.0 - 0.5 * tt / np.tan(0.5 * np.where(small, 1.0, tt))) / np.where(
+                         small, 1.0, t2))
+        blocks = np.zeros((n, 6, 6))
+        blocks[:, :3, :3] = np.eye(3)
+        blocks[:, 3:, 3:] = np.eye(3) - 0.5 * w + c[:, None, None] * (w @ w)
+        full = sp.block_diag(list(blocks), format="csr")
+        free = self._free_ids
+        return full[free][:, free]
+
     def _try_step(self, s0: State, h: float, on_progress=None):
         """One step of size h from s0. Returns (state, qdd, a_alg, iterations) or None."""
         m = self.model
@@ -151,34 +176,45 @@ class GeneralizedAlpha:
             s1.rotations[i] = rotation_exp(theta[i]) @ s0.rotations[i]
         tol = self.opt.newton_tol * self.opt.tol_displacement
         prev = None
-        fresh = False
+        fresh_tangent = False
+        # a step that had to rebuild its tangent suggests the next one will too: do it upfront
+        refresh = (not self.opt.reuse_factorization) or self._refresh_next
+        self._refresh_next = False
         for it in range(1, self.opt.max_newton + 1):
-            a1, qdd, v1 = self._kinematics(s0, self._alg, np.hstack([s1.positions - s0.positions,
-                                                                      theta]), h)
+            a1, qdd, v1 = self._kinematics(
+                s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h)
             s1.velocities = v1
-            need = (self._factor_h != h) or not self.opt.reuse_factorization
-            if prev is not None and prev[1] > 0.3 and not fresh:
-                need = True
             t0 = _time.perf_counter()
-            if need:
-                fint, data, _ = asm.internal_forces_and_tangent(
-                    m, s1.positions, s1.rotations, v1, cv)
-                data[m.diag_slots] += ca * self._mfree
-                asm.add_follower_tangent(m, data, t1, s1.rotations)
-                t1_ = _time.perf_counter()
-                self.stats.wall_s["tangent"] += t1_ - t0
+            if refresh or self._tangent is None:
+                fint, dk, dc, _ = asm.internal_forces_and_tangent(
+                    m, s1.positions, s1.rotations, v1)
+                self._tangent = (dk, dc)
+                self._factor_h = None
+                fresh_tangent = True
+                refresh = False
                 self.stats.tangent_assemblies += 1
-                try:
-                    self.solver.factor(asm.csr_from_data(m, data))
-                except SingularMatrixError:
-                    return None
-                self.stats.wall_s["factor"] += _time.perf_counter() - t1_
-                self.stats.factorizations += 1
-                self._factor_h = h
-                fresh = True
+                self.stats.wall_s["tangent"] += _time.perf_counter() - t0
             else:
                 fint, _ = asm.internal_forces(m, s1.positions, s1.rotations, v1)
                 self.stats.wall_s["residual"] += _time.perf_counter() - t0
+            if self._factor_h != h:
+                t0 = _time.perf_counter()
+                dk, dc = self._tangent
+                data = dk.copy()
+                asm.add_follower_tangent(m, data, t1, s1.rotations)
+                # velocities and accelerations depend on the rotation increment Theta through
+                # dTheta = T^-1(Theta) dphi: right-multiply C and M by that block map
+                tmap = self._increment_map(theta)
+                mat = asm.csr_from_data(m, data) + (
+                    cv * asm.csr_from_data(m, dc) + sp.diags(ca * self._mfree)) @ tmap
+                try:
+                    self.solver.factor(mat.tocsr())
+                except SingularMatrixError:
+                    self._tangent = None
+                    return None
+                self._factor_h = h
+                self.stats.factorizations += 1
+                self.stats.wall_s["factor"] += _time.perf_counter() - t0
             fext = asm.external_forces(m, t1, s1.rotations)
             r = asm.free_vector(m, m.mass * qdd + fint - fext)
             if not np.all(np.isfinite(r)):
@@ -197,22 +233,24 @@ class GeneralizedAlpha:
                 s1.rotations[i] = rotation_exp(full[i, 3:]) @ s1.rotations[i]
                 theta[i] = rotation_log(s1.rotations[i] @ s0.rotations[i].T)
             norm = max(np.abs(full[:, :3]).max(), self.elem_size * np.abs(full[:, 3:]).max())
-            rate = 0.0 if prev is None or prev[0] == 0 else norm / prev[0]
-            if rate >= 1.0 and it > 2:
-                return None
-            err_est = norm * rate / (1.0 - rate) if 0 < rate < 1 else norm
+
+            rate = 0.0 if prev is None or prev == 0 else norm / prev
             self._worst = int(np.argmax(np.abs(full).sum(axis=1)))
-            if err_est <= tol or norm <= 1e-3 * tol:
+            # Newton's remaining error ~ norm * rate / (1 - rate) for a contracting iteration
+            err_est = norm * rate / (1.0 - rate) if 0.0 < rate < 1.0 else norm
+            if (prev is not None and err_est <= tol) or norm <= 1e-3 * tol:
                 a1, qdd, v1 = self._kinematics(
                     s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h)
                 s1.velocities = v1
                 s1.accelerations = qdd
                 return s1, qdd, a1, it
-            prev = (norm, rate)
-            if not fresh and rate > 0.3:
-                continue
-            if fresh and it >= 2 and rate > 0.9:
-                return None
+            prev = norm
+            if rate > 0.3:
+                if not fresh_tangent:
+                    refresh = True  # an old tangent contracts too slowly: rebuild it
+                    self._refresh_next = True
+                elif rate > 0.9 and it >= 3:
+                    return None  # even a fresh tangent does not contract: cut the step
         return None
 
     def step(self, state: State, t_limit: float) -> State:
@@ -231,21 +269,26 @@ class GeneralizedAlpha:
             if out is None:
                 self.stats.rejected_steps += 1
                 self.h = 0.5 * h
-                self._factor_h = None
+                # Newton's reach, unlike the error estimate, is not predicted by the controller:
+                # remember where it failed and let the cap relax slowly afterwards
+                self._h_cap = 0.75 * h
+                self._tangent = None  # retry from a fresh tangent
                 continue
+            self._h_cap *= 1.05
             s1, qdd, a1, _ = out
             if opt.adaptive:
                 dqdd = qdd[:, :3] - state.accelerations[:, :3]
                 err = h * h * abs(self.beta - 1.0 / 6.0) * np.sqrt((dqdd**2).sum(axis=1)).max()
                 ratio = err / opt.tol_displacement
-                grow = 2.0 if ratio == 0 else min(2.0, max(0.3, 0.9 * ratio ** (-1.0 / 3.0)))
+                grow = 1.5 if ratio == 0 else min(1.5, max(0.3, 0.85 * ratio ** (-1.0 / 3.0)))
                 if ratio > 1.0:
                     self.stats.rejected_steps += 1
                     self.h = h * grow
                     continue
-                # keep the factorisation valid: only change h for a clear gain
-                if grow > 1.25 or grow < 1.0:
-                    self.h = min(h * grow, opt.dt_max) if h >= self.h * 0.999 else self.h
+                # a new h costs a refactorisation: change it only for a clear gain, and never
+                # grow from a step that was shortened to land on t_limit
+                if grow < 1.0 or (grow > 1.2 and h >= 0.999 * self.h):
+                    self.h = min(h * grow, opt.dt_max, max(self._h_cap, h))
             self._alg = a1
             self.stats.steps += 1
             return s1

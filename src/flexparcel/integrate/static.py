@@ -105,8 +105,8 @@ def solve_static(
 
 def _newton(model, state, lam, time, tol, max_iterations, solver, span, zeros_v):
     for it in range(1, max_iterations + 1):
-        fint, data, _ = asm.internal_forces_and_tangent(
-            model, state.positions, state.rotations, zeros_v, 0.0
+        fint, data, _, _ = asm.internal_forces_and_tangent(
+            model, state.positions, state.rotations, zeros_v
         )
         fext = asm.external_forces(model, time, state.rotations, lam)
         asm.add_follower_tangent(model, data, time, state.rotations, lam)
