@@ -33,6 +33,10 @@ def write_atomic(path: str | Path, data: bytes | str) -> Path:
     raw = data.encode("utf-8") if isinstance(data, str) else data
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
+        # mkstemp creates the file private (0600); give it the usual umask-based mode.
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         with os.fdopen(fd, "wb") as f:
             f.write(raw)
             f.flush()
@@ -155,6 +159,15 @@ def _screening_figures(figs: _Figures, exp: str, res: dict) -> str:
     return "".join(out)
 
 
+def _log_axis(axis) -> None:
+    """Plain numbers at 1-2-5 ticks on a log axis (no overlapping 'a x 10^b' minor labels)."""
+    from matplotlib import ticker
+
+    axis.set_major_locator(ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(ticker.NullFormatter())
+
+
 def _residual_figure(figs: _Figures, exp: str, r: str, gp: dict, unit: str) -> str:
     import matplotlib.pyplot as plt
 
@@ -164,6 +177,8 @@ def _residual_figure(figs: _Figures, exp: str, r: str, gp: dict, unit: str) -> s
     lo = min(np.min(ht) if ht.size else np.inf, np.min(gp["cv_pred"]))
     hi = max(np.max(ht) if ht.size else -np.inf, np.max(gp["cv_pred"]))
     ax.plot([lo, hi], [lo, hi], "k-", lw=0.8)
+    if gp.get("cv_true"):
+        ax.plot(gp["cv_true"], gp["cv_pred"], ".", color="0.6", label="CV out-of-fold")
     ax.errorbar(ht, hp, yerr=2 * hs, fmt="o", color="tab:blue", label="hold-out (±2σ)")
     ax.set_xlabel(f"simulated {r} [{unit}]" if unit else f"simulated {r}")
     ax.set_ylabel("surrogate prediction")
@@ -171,7 +186,11 @@ def _residual_figure(figs: _Figures, exp: str, r: str, gp: dict, unit: str) -> s
     ax.set_title(f"hold-out RMSE = {_fmt(gp['holdout_rmse'])}", fontsize=9)
     ax = axes[1]
     ax.axhline(0, color="k", lw=0.8)
+    if gp.get("cv_true"):
+        cp, ct = np.asarray(gp["cv_pred"]), np.asarray(gp["cv_true"])
+        ax.plot(cp, cp - ct, ".", color="0.6", label="CV out-of-fold")
     ax.plot(hp, hp - ht, "o", color="tab:blue", label="hold-out")
+    ax.legend(fontsize=8)
     ax.set_xlabel("surrogate prediction")
     ax.set_ylabel("residual (predicted - simulated)")
     ax.set_title(f"residuals, kernel {gp['kernel']}", fontsize=9)
@@ -200,6 +219,7 @@ def _contour_figure(figs, study, exp, r, surrogate, fit, target, optimum) -> str
         ax.set_ylabel(r)
         if space.parameters[0].scale == "log":
             ax.set_xscale("log")
+            _log_axis(ax.xaxis)
         ax.legend(fontsize=8)
         return figs.add(fig, f"contour_{exp}_{r}")
     # The two most influential inputs (shortest length scales); the rest held at the optimum.
@@ -226,8 +246,10 @@ def _contour_figure(figs, study, exp, r, surrogate, fit, target, optimum) -> str
     ax.set_ylabel(f"{p_j.name} [{p_j.unit}]")
     if p_i.scale == "log":
         ax.set_xscale("log")
+        _log_axis(ax.xaxis)
     if p_j.scale == "log":
         ax.set_yscale("log")
+        _log_axis(ax.yaxis)
     others = [p for k, p in enumerate(active) if k not in (i, j)]
     title = f"{exp}: surrogate of {r}"
     if others:

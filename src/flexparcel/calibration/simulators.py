@@ -202,6 +202,7 @@ def analytic(
     delay_s: float = 0.0,
     log_file: str | None = None,
     fail_first_dir: str | None = None,
+    crash_first_dir: str | None = None,
 ) -> dict[str, float]:
     """Closed-form stand-in for the paper's KP/BW tests, with known truth.
 
@@ -217,7 +218,9 @@ def analytic(
 
     Test hooks: ``delay_s`` sleeps that long [s]; ``log_file`` gets a ``start`` and an ``end``
     line per call (parameter digest and time); with ``fail_first_dir`` the first call at each
-    parameter point raises (a marker file in that directory records it), later ones succeed.
+    parameter point raises (a marker file in that directory records it), later ones succeed;
+    ``crash_first_dir`` likewise, but the first call kills its process (``os._exit``), as a
+    segfaulting solver would.
     """
     if mode not in ANALYTIC_RESPONSES:
         raise ValueError(f"analytic: mode must be one of {sorted(ANALYTIC_RESPONSES)}, got {mode}")
@@ -234,6 +237,11 @@ def analytic(
         if not os.path.exists(marker):
             open(marker, "w").close()
             raise RuntimeError(f"analytic: deliberate first-attempt failure at {digest}")
+    if crash_first_dir:
+        marker = os.path.join(crash_first_dir, f"{mode}-{digest}")
+        if not os.path.exists(marker):
+            open(marker, "w").close()
+            os._exit(70)
     if delay_s > 0:
         time.sleep(delay_s)
     truth = _truth(params, mode)

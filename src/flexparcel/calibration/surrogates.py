@@ -95,8 +95,9 @@ class GPRSurrogate:
         RMSE of the chosen kernel on the hold-out runs, trained on the other runs [response unit].
     holdout_pred_, holdout_std_, holdout_true_ : ndarray
         Its predictions, predictive standard deviations and the simulated values there.
-    cv_pred_ : ndarray
-        Out-of-fold predictions of the chosen kernel for the model-selection runs.
+    cv_pred_, cv_true_ : ndarray
+        Out-of-fold predictions of the chosen kernel for the model-selection runs, and the
+        simulated values there.
     gpr_ : sklearn.gaussian_process.GaussianProcessRegressor
         The final model (inputs in unit coordinates).
     theta_ : list of float
@@ -198,6 +199,7 @@ class GPRSurrogate:
             self.cv_rmse_[name] = float(np.mean(fold_rmse))
         self.kernel_name_ = min(self.cv_rmse_, key=self.cv_rmse_.get)
         self.cv_pred_ = cv_pred[self.kernel_name_]
+        self.cv_true_ = y_sel
 
         gpr = self._fit_one(self.kernel_name_, U_sel, y_sel, seed)
         if n_hold:
@@ -250,6 +252,7 @@ class GPRSurrogate:
             "holdout_std": [float(v) for v in self.holdout_std_],
             "holdout_true": [float(v) for v in self.holdout_true_],
             "cv_pred": [float(v) for v in self.cv_pred_],
+            "cv_true": [float(v) for v in self.cv_true_],
             "length_scales": [float(v) for v in self.length_scales_],
             "refit_all": self.refit_all,
         }
@@ -284,5 +287,6 @@ class GPRSurrogate:
         self.holdout_std_ = np.asarray(data["holdout_std"], dtype=float)
         self.holdout_true_ = np.asarray(data["holdout_true"], dtype=float)
         self.cv_pred_ = np.asarray(data["cv_pred"], dtype=float)
+        self.cv_true_ = np.asarray(data.get("cv_true", []), dtype=float)
         self._set_model(gpr, U, y)
         return self
