@@ -125,8 +125,11 @@ def _newton(model, state, lam, time, tol, max_iterations, solver, span, zeros_v)
         apply_increment(model, state, dq)
         rn = np.linalg.norm(r)
         state._worst = int(np.argmax(np.abs(fint - fext).sum(axis=1)))
-        if rn <= tol * scale and np.abs(dq).max() <= tol * span * 10:
+        # converged: residual small against the loads, and the correction small against the
+        # current displacement (or negligible against the model size)
+        umax = np.abs(state.positions - model.positions0).max()
+        if rn <= tol * scale and np.abs(dq).max() <= 10 * tol * max(umax, 1e-6 * span):
             return True, it
-        if np.abs(dq).max() <= 1e-3 * tol * span:
+        if np.abs(dq).max() <= 1e-14 * span:
             return True, it
     return False, max_iterations
