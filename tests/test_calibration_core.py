@@ -165,12 +165,19 @@ def test_lenth_on_a_saturated_design():
     assert s.significant_factors_ == ["a", "c"]
 
 
-def test_aliased_terms_are_reported_not_estimated():
+def test_aliased_terms_are_reported_and_alias_chains_kept():
     C = fractional_factorial(4, ["D = ABC"])  # resolution IV: 2FIs aliased in pairs
-    y = 5 + 2 * C[:, 0] + 0.01 * np.arange(8)
-    s = AnovaScreening(method="lenth").fit(C, y, list("abcd"))
+    a, b, c, d = C.T
+    # A real c:d interaction; the design estimates it as a:b (the first term of the chain).
+    # Inert effects +-0.1 give PSE = 0.15 and a margin of error ~0.6 << 3.
+    y = 1 + 2 * a + 1.5 * c * d + 0.05 * (b - c + d) + 0.05 * (-a * c + a * d)
+    s = AnovaScreening(alpha=0.05).fit(C, y, list("abcd"))
+    assert s.method_ == "lenth"  # 8 runs, 7 terms: saturated
     assert s.aliased_["c:d"] == "a:b"
     assert "c:d" not in s.terms_
+    assert s.significant_terms_ == ["a", "a:b"]
+    # a:b might be c:d: all four factors are kept rather than dropping an active one.
+    assert s.significant_factors_ == ["a", "b", "c", "d"]
 
 
 def test_screening_finds_exactly_the_active_factors_of_the_analytic_drop():

@@ -14,7 +14,10 @@ Lenth's method is used instead: every estimable effect is compared with the marg
 (mostly inert) effects (R. V. Lenth, Technometrics 31 (1989) 469-473).
 
 A parameter is *significant* when its main effect or a two-factor interaction containing it is
-significant; the others are frozen at their nominal values for the detailed design.
+significant; the others are frozen at their nominal values for the detailed design. In a
+fractional factorial a significant term stands for its alias chain, and the factors of every main
+effect and two-factor interaction in that chain are kept (a resolution IV design cannot tell
+``a:b`` from ``c:d``; keeping a parameter too many is cheaper than dropping an active one).
 """
 
 from __future__ import annotations
@@ -147,7 +150,16 @@ class AnovaScreening:
 
         sig_terms = [row["term"] for row in self.table_ if row.get("significant")]
         self.significant_terms_ = sig_terms
-        involved = {f for t in sig_terms for f in t.split(":") if t.count(":") <= 1}
+        # In a fractional factorial a significant term stands for its whole alias chain; the
+        # factors of every main effect or two-factor interaction in the chain are kept, since
+        # the design cannot tell which of them acts (dropping a real factor is the costly error).
+        chains: dict[str, list[str]] = {t: [t] for t in sig_terms}
+        for term, alias in aliased.items():
+            if alias in chains:
+                chains[alias].append(term)
+        involved = {
+            f for t in sig_terms for a in chains[t] if a.count(":") <= 1 for f in a.split(":")
+        }
         self.significant_factors_ = [f for f in names if f in involved]
         return self
 
