@@ -508,6 +508,7 @@ def write_report(study: Study) -> Path:
                 "active": v["active"],
                 "n_runs": len(v["run_keys"]),
                 "n_failed": v["n_failed"],
+                "range": v["range"],
                 "responses": {
                     r: {
                         k: g[k]
