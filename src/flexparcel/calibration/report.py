@@ -349,7 +349,7 @@ def write_report(study: Study) -> Path:
                 add(f"<h4>{title}: {html.escape(r)}</h4>")
                 trs = [
                     [row["term"], row["df"], row["sum_sq"], row["mean_sq"], row["F"], row["p"]]
-                    + [row["effect"], row["significant"]]
+                    + [row["effect"], None if row["term"] == "Residual" else row["significant"]]
                     for row in an["table"]
                 ]
                 cls = [
