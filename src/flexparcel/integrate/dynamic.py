@@ -113,6 +113,8 @@ class GeneralizedAlpha:
         area = 0.5 * np.abs((tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
                             - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1]))
         self.elem_size = float(np.sqrt(np.mean(area)))
+        # corrections below this are round-off in the positions, not Newton error
+        self._floor = 1e-13 * max(1.0, float(np.abs(model.positions0).max()))
 
     # ---------------------------------------------------------------- helpers
     def initialize(self, state: State) -> None:
@@ -164,9 +166,12 @@ class GeneralizedAlpha:
         ca = (1.0 - am) / ((1.0 - af) * b * h * h)
         cv = self.gamma / (b * h)
         t1 = s0.time + h
-        # predictor: qdd_{n+1} = qdd_n  => a_{n+1} = qdd_n (when a_n = qdd_n), dq from Newmark
+        # predictor: translations with qdd_{n+1} = qdd_n; rotations at constant angular velocity,
+        # because the nodal rotary inertia of a thin shell is tiny (rho t^3/12) and its
+        # accelerations carry no useful trend (they are set by small moment imbalances)
         a_pred = ((1.0 - af) * s0.accelerations + af * s0.accelerations - am * self._alg) / (1 - am)
         dq = h * s0.velocities + h * h * ((0.5 - b) * self._alg + b * a_pred)
+        dq[:, 3:] = h * s0.velocities[:, 3:]
         dq[m.fixed] = 0.0
         s1 = s0.copy()
         s1.time = t1
@@ -177,6 +182,8 @@ class GeneralizedAlpha:
         tol = self.opt.newton_tol * self.opt.tol_displacement
         prev = None
         fresh_tangent = False
+        tangent_iter = None  # iteration (of this step) whose state the tangent was built at
+        diverging = 0
         # a step that had to rebuild its tangent suggests the next one will too: do it upfront
         refresh = (not self.opt.reuse_factorization) or self._refresh_next
         self._refresh_next = False
@@ -185,7 +192,8 @@ class GeneralizedAlpha:
                 s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h)
             s1.velocities = v1
             t0 = _time.perf_counter()
-            if refresh or self._tangent is None:
+            if refresh or self._tangent is None or not self.opt.reuse_factorization:
+                tangent_iter = it
                 fint, dk, dc, _ = asm.internal_forces_and_tangent(
                     m, s1.positions, s1.rotations, v1)
                 self._tangent = (dk, dc)
@@ -234,23 +242,26 @@ class GeneralizedAlpha:
                 theta[i] = rotation_log(s1.rotations[i] @ s0.rotations[i].T)
             norm = max(np.abs(full[:, :3]).max(), self.elem_size * np.abs(full[:, 3:]).max())
 
+
             rate = 0.0 if prev is None or prev == 0 else norm / prev
             self._worst = int(np.argmax(np.abs(full).sum(axis=1)))
             # Newton's remaining error ~ norm * rate / (1 - rate) for a contracting iteration
             err_est = norm * rate / (1.0 - rate) if 0.0 < rate < 1.0 else norm
-            if (prev is not None and err_est <= tol) or norm <= 1e-3 * tol:
+            if (prev is not None and err_est <= tol) or norm <= max(1e-3 * tol, self._floor):
                 a1, qdd, v1 = self._kinematics(
                     s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h)
                 s1.velocities = v1
                 s1.accelerations = qdd
                 return s1, qdd, a1, it
             prev = norm
-            if rate > 0.3:
-                if not fresh_tangent:
-                    refresh = True  # an old tangent contracts too slowly: rebuild it
+            diverging = diverging + 1 if rate > 1.0 else 0
+            if diverging >= 2 and it >= 4:
+                return None  # Newton diverges: cut the step
+            if rate > 0.3 and (tangent_iter is None or it - tangent_iter >= 1):
+                # the tangent in use contracts too slowly: rebuild it at the current iterate
+                refresh = True
+                if tangent_iter is None:
                     self._refresh_next = True
-                elif rate > 0.9 and it >= 3:
-                    return None  # even a fresh tangent does not contract: cut the step
         return None
 
     def step(self, state: State, t_limit: float) -> State:
@@ -289,6 +300,9 @@ class GeneralizedAlpha:
                 # grow from a step that was shortened to land on t_limit
                 if grow < 1.0 or (grow > 1.2 and h >= 0.999 * self.h):
                     self.h = min(h * grow, opt.dt_max, max(self._h_cap, h))
+            elif h < opt.dt_initial:
+                # fixed-step mode: after a Newton failure forced sub-steps, return to the step
+                self.h = min(opt.dt_initial, 2.0 * h)
             self._alg = a1
             self.stats.steps += 1
             return s1
