@@ -800,14 +800,21 @@ class Study:
             }
             for t in exp.targets:
                 y = np.array([r["responses"][t.response] for r in done])
-                gp = GPRSurrogate(
-                    sub,
-                    kernels=c.kernels,
-                    cv_folds=c.cv_folds,
-                    holdout_fraction=c.holdout_fraction,
-                    n_restarts_optimizer=c.gp_restarts,
-                    random_state=_seed(c.random_state, exp.name, t.response, "gpr"),
-                ).fit(X, y)
+                try:
+                    gp = GPRSurrogate(
+                        sub,
+                        kernels=c.kernels,
+                        cv_folds=c.cv_folds,
+                        holdout_fraction=c.holdout_fraction,
+                        n_restarts_optimizer=c.gp_restarts,
+                        random_state=_seed(c.random_state, exp.name, t.response, "gpr"),
+                    ).fit(X, y)
+                except ValueError as exc:
+                    raise StudyConfigError(
+                        f"stage 'fit', experiment '{exp.name}', response '{t.response}': {exc} "
+                        f"({len(done)} usable runs of {len(rows)}; see "
+                        f"[experiments.{exp.name}.design] runs and [surrogate])"
+                    ) from exc
                 result["responses"][t.response] = gp.to_dict()
                 result["range"][t.response] = [float(y.min()), float(y.max())]
                 if bar is not None:
