@@ -293,7 +293,8 @@ def element_forces(tris, kl, xloc, r0ref, beta, pos, rot, vel, out):
 
 
 @nb.njit(cache=True)
-def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, data_c, emap):
+def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, data_c, emap,
+                     consistent=True):
     """Forces into ``out_f``; stiffness ``dF/d(x, spin)`` scattered into CSR ``data_k`` and
     damping ``dF/d(v, omega)`` into ``data_c`` through ``emap`` (m, 18, 18) of data indices.
     Returns the strain energy [J].
@@ -310,6 +311,15 @@ def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, 
         energy += en
         for a in range(3):
             out_f[tris[e, a]] += f[6 * a : 6 * a + 6]
+        if not consistent:
+            # material tangent B^T K_l B only (no frame-rotation terms)
+            d, bg = _tri_kinematics(x, r, xloc[e], r0ref[e])
+            ke = matmul(matmul(bg.T.copy(), kl[e].copy()), bg)
+            for i in range(18):
+                for j in range(18):
+                    data_k[emap[e, i, j]] += ke[i, j]
+                    data_c[emap[e, i, j]] += beta[e] * ke[i, j]
+            continue
         xc = x.astype(np.complex128)
         rc = r.astype(np.complex128)
         ke = np.zeros((18, 18))

@@ -35,7 +35,7 @@ def internal_forces(model: Model, positions, rotations, velocities) -> tuple[np.
 
 
 def internal_forces_and_tangent(
-    model: Model, positions, rotations, velocities
+    model: Model, positions, rotations, velocities, consistent: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Forces (n, 6), CSR data (nnz + 1,) of the stiffness ``K = dF/dq`` and of the damping
     ``C = dF/dv``, and the strain energy [J].
@@ -48,7 +48,7 @@ def internal_forces_and_tangent(
     data_c = np.zeros(model.nnz + 1)
     energy = shell.element_tangents(
         model.triangles, model.tri_kl, model.tri_xloc, model.tri_frame0, model.tri_beta,
-        positions, rotations, velocities, out, data_k, data_c, model.tri_emap,
+        positions, rotations, velocities, out, data_k, data_c, model.tri_emap, consistent,
     )
     return out, data_k, data_c, energy
 
