@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from flexparcel.elements.rotations import rotation_log
+from flexparcel.elements.rotations import rotation_vectors
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.dynamic import GeneralizedAlpha, IntegratorOptions
 from flexparcel.model.builder import Model, State
@@ -91,7 +91,7 @@ def simulate(
     def record(st: State) -> None:
         rec_t.append(st.time)
         rec_x.append(st.positions.copy())
-        rec_r.append(np.array([rotation_log(r) for r in st.rotations]))
+        rec_r.append(rotation_vectors(st.rotations))
         rec_v.append(st.velocities.copy())
         rec_e.append(_energies(model, st))
 

@@ -125,3 +125,30 @@ def tangent(theta):
     for i in range(3):
         m[i, i] += 1.0
     return m
+
+
+@nb.njit(cache=True)
+def apply_spins(rot, spins):
+    """In place: ``rot[i] <- exp(spins[i]) rot[i]`` for every node with a non-zero spin.
+    ``rot`` (n, 3, 3), ``spins`` (n, 3) [rad]."""
+    for i in range(rot.shape[0]):
+        if spins[i, 0] != 0.0 or spins[i, 1] != 0.0 or spins[i, 2] != 0.0:
+            rot[i] = matmul(rotation_exp(spins[i].copy()), rot[i].copy())
+
+
+@nb.njit(cache=True)
+def relative_rotation_vectors(rot, rot_ref):
+    """``log(rot[i] rot_ref[i]^T)`` for all nodes, shape (n, 3)."""
+    out = np.zeros((rot.shape[0], 3))
+    for i in range(rot.shape[0]):
+        out[i] = rotation_log(matmul(rot[i].copy(), rot_ref[i].T.copy()))
+    return out
+
+
+@nb.njit(cache=True)
+def rotation_vectors(rot):
+    """``log(rot[i])`` for all nodes, shape (n, 3)."""
+    out = np.zeros((rot.shape[0], 3))
+    for i in range(rot.shape[0]):
+        out[i] = rotation_log(rot[i].copy())
+    return out

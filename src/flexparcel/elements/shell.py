@@ -35,7 +35,7 @@ import numpy as np
 from flexparcel.elements.rotations import matmul, rotation_log, skew, tangent_inv
 
 __all__ = ["DRILLING_ALPHA", "local_stiffness", "reference_frames", "element_forces",
-           "element_tangents"]
+           "element_tangents", "material_tangents"]
 
 DRILLING_ALPHA = 1e-3
 _CS_STEP = 1e-30  # complex-step size: no subtractive cancellation, so any tiny h is exact
@@ -278,23 +278,78 @@ def _gather(e, tris, pos, rot, vel):
     return x, r, v
 
 
+@nb.njit(cache=True, parallel=True)
+def _element_force_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en):
+    for e in nb.prange(tris.shape[0]):
+        x, r, v = _gather(e, tris, pos, rot, vel)
+        f, energy = _tri_force(x, r, v, kl[e], xloc[e], r0ref[e], beta[e])
+        fe[e] = f
+        en[e] = energy
+
+
 @nb.njit(cache=True)
+def _scatter_forces(tris, fe, out):
+    for e in range(tris.shape[0]):
+        for a in range(3):
+            for i in range(6):
+                out[tris[e, a], i] += fe[e, 6 * a + i]
+
+
 def element_forces(tris, kl, xloc, r0ref, beta, pos, rot, vel, out):
     """Assemble internal forces of all triangles into ``out`` (node_count, 6); returns strain
-    energy [J]. ``pos`` (n, 3) [m], ``rot`` (n, 3, 3), ``vel`` (n, 6) [m/s, rad/s]."""
-    energy = 0.0
-    for e in range(tris.shape[0]):
+    energy [J]. ``pos`` (n, 3) [m], ``rot`` (n, 3, 3), ``vel`` (n, 6) [m/s, rad/s].
+
+    Element blocks are computed in parallel (numba threads), then scattered serially so the
+    sum is deterministic."""
+    m = tris.shape[0]
+    fe = np.empty((m, 18))
+    en = np.empty(m)
+    _element_force_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en)
+    _scatter_forces(tris, fe, out)
+    return float(en.sum())
+
+
+@nb.njit(cache=True, parallel=True)
+def _material_tangent_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en, ke):
+    for e in nb.prange(tris.shape[0]):
         x, r, v = _gather(e, tris, pos, rot, vel)
-        f, en = _tri_force(x, r, v, kl[e], xloc[e], r0ref[e], beta[e])
-        energy += en
-        for a in range(3):
-            out[tris[e, a]] += f[6 * a : 6 * a + 6]
-    return energy
+        f, energy = _tri_force(x, r, v, kl[e], xloc[e], r0ref[e], beta[e])
+        fe[e] = f
+        en[e] = energy
+        d, bg = _tri_kinematics(x, r, xloc[e], r0ref[e])
+        kb = matmul(kl[e].copy(), bg)
+        for i in range(18):
+            for j in range(18):
+                acc = 0.0
+                for k in range(18):
+                    acc += bg[k, i] * kb[k, j]
+                ke[e, i, j] = acc
 
 
 @nb.njit(cache=True)
-def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, data_c, emap,
-                     consistent=True):
+def _scatter_matrix(emap, ke, scale, data):
+    for e in range(ke.shape[0]):
+        for i in range(18):
+            for j in range(18):
+                data[emap[e, i, j]] += scale[e] * ke[e, i, j]
+
+
+def material_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, data_c, emap):
+    """Forces into ``out_f``; material stiffness ``B^T K_l B`` into CSR ``data_k`` and the
+    Rayleigh damping ``beta B^T K_l B`` into ``data_c``. Returns the strain energy [J]."""
+    m = tris.shape[0]
+    fe = np.empty((m, 18))
+    en = np.empty(m)
+    ke = np.empty((m, 18, 18))
+    _material_tangent_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en, ke)
+    _scatter_forces(tris, fe, out_f)
+    _scatter_matrix(emap, ke, np.ones(m), data_k)
+    _scatter_matrix(emap, ke, beta, data_c)
+    return float(en.sum())
+
+
+@nb.njit(cache=True)
+def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, data_c, emap):
     """Forces into ``out_f``; stiffness ``dF/d(x, spin)`` scattered into CSR ``data_k`` and
     damping ``dF/d(v, omega)`` into ``data_c`` through ``emap`` (m, 18, 18) of data indices.
     Returns the strain energy [J].
@@ -311,15 +366,6 @@ def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, 
         energy += en
         for a in range(3):
             out_f[tris[e, a]] += f[6 * a : 6 * a + 6]
-        if not consistent:
-            # material tangent B^T K_l B only (no frame-rotation terms)
-            d, bg = _tri_kinematics(x, r, xloc[e], r0ref[e])
-            ke = matmul(matmul(bg.T.copy(), kl[e].copy()), bg)
-            for i in range(18):
-                for j in range(18):
-                    data_k[emap[e, i, j]] += ke[i, j]
-                    data_c[emap[e, i, j]] += beta[e] * ke[i, j]
-            continue
         xc = x.astype(np.complex128)
         rc = r.astype(np.complex128)
         ke = np.zeros((18, 18))

@@ -38,7 +38,8 @@ def internal_forces_and_tangent(
     model: Model, positions, rotations, velocities, consistent: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Forces (n, 6), CSR data (nnz + 1,) of the stiffness ``K = dF/dq`` and of the damping
-    ``C = dF/dv``, and the strain energy [J].
+    ``C = dF/dv``, and the strain energy [J]. ``consistent=False`` gives the material
+    stiffness ``B^T K_l B`` instead of the exact (complex-step) derivative.
 
     The last data entry is a trash slot collecting fixed-DOF entries; drop it with
     :func:`csr_from_data`.
@@ -46,9 +47,10 @@ def internal_forces_and_tangent(
     out = np.zeros((model.node_count, 6))
     data_k = np.zeros(model.nnz + 1)
     data_c = np.zeros(model.nnz + 1)
-    energy = shell.element_tangents(
+    kernel = shell.element_tangents if consistent else shell.material_tangents
+    energy = kernel(
         model.triangles, model.tri_kl, model.tri_xloc, model.tri_frame0, model.tri_beta,
-        positions, rotations, velocities, out, data_k, data_c, model.tri_emap, consistent,
+        positions, rotations, velocities, out, data_k, data_c, model.tri_emap,
     )
     return out, data_k, data_c, energy
 

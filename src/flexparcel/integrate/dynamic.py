@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from flexparcel.elements.rotations import rotation_exp, rotation_log
+from flexparcel.elements.rotations import apply_spins, relative_rotation_vectors
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.errors import ConvergenceError
 from flexparcel.integrate.linear import SingularMatrixError, make_linear_solver
@@ -188,8 +188,7 @@ class GeneralizedAlpha:
         s1.time = t1
         s1.positions = s0.positions + dq[:, :3]
         theta = dq[:, 3:].copy()
-        for i in np.flatnonzero(np.any(theta != 0.0, axis=1)):
-            s1.rotations[i] = rotation_exp(theta[i]) @ s0.rotations[i]
+        apply_spins(s1.rotations, theta)
         tol = self.opt.newton_tol * self.opt.tol_displacement
         prev = None
         fresh_tangent = False
@@ -223,9 +222,16 @@ class GeneralizedAlpha:
                 asm.add_follower_tangent(m, data, t1, s1.rotations)
                 # velocities and accelerations depend on the rotation increment Theta through
                 # dTheta = T^-1(Theta) dphi: right-multiply C and M by that block map
-                tmap = self._increment_map(theta)
-                mat = asm.csr_from_data(m, data) + (
-                    cv * asm.csr_from_data(m, dc) + sp.diags(ca * self._mfree)) @ tmap
+                if self.opt.tangent == "consistent":
+                    tmap = self._increment_map(theta)
+                    mat = asm.csr_from_data(m, data) + (
+                        cv * asm.csr_from_data(m, dc) + sp.diags(ca * self._mfree)) @ tmap
+                else:
+                    # the material tangent is approximate anyway; without the O(|Theta|)
+                    # increment map it stays symmetric and is assembled in place
+                    data += cv * dc
+                    data[m.diag_slots] += ca * self._mfree
+                    mat = asm.csr_from_data(m, data)
                 try:
                     self.solver.factor(mat.tocsr())
                 except SingularMatrixError:
@@ -248,9 +254,8 @@ class GeneralizedAlpha:
             full[self._free] = dx
             full = full.reshape(-1, 6)
             s1.positions += full[:, :3]
-            for i in np.flatnonzero(np.any(full[:, 3:] != 0.0, axis=1)):
-                s1.rotations[i] = rotation_exp(full[i, 3:]) @ s1.rotations[i]
-                theta[i] = rotation_log(s1.rotations[i] @ s0.rotations[i].T)
+            apply_spins(s1.rotations, np.ascontiguousarray(full[:, 3:]))
+            theta = relative_rotation_vectors(s1.rotations, s0.rotations)
             norm = max(np.abs(full[:, :3]).max(), self.elem_size * np.abs(full[:, 3:]).max())
 
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flexparcel.elements.rotations import rotation_exp, rotation_log
+from flexparcel.elements.rotations import apply_spins, rotation_vectors
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.errors import ConvergenceError
 from flexparcel.integrate.linear import SingularMatrixError, make_linear_solver
@@ -41,13 +41,11 @@ def apply_increment(model: Model, state: State, dq_free: np.ndarray) -> None:
     dq[model.free_index >= 0] = dq_free
     dq = dq.reshape(-1, 6)
     state.positions += dq[:, :3]
-    moved = np.flatnonzero(np.any(dq[:, 3:] != 0.0, axis=1))
-    for i in moved:
-        state.rotations[i] = rotation_exp(dq[i, 3:]) @ state.rotations[i]
+    apply_spins(state.rotations, np.ascontiguousarray(dq[:, 3:]))
 
 
 def _rotation_vectors(rot: np.ndarray) -> np.ndarray:
-    return np.array([rotation_log(r) for r in rot])
+    return rotation_vectors(rot)
 
 
 def solve_static(
