@@ -15,8 +15,19 @@ def reference_dir() -> Path:
     return REFERENCE
 
 
-def strip_model(length, width, thickness, nx, ny=1, *, e=1.2e6, nu=0.0, rho=1.0, beta=0.0,
-                gravity=(0.0, 0.0, 0.0)):
+def strip_model(
+    length,
+    width,
+    thickness,
+    nx,
+    ny=1,
+    *,
+    e=1.2e6,
+    nu=0.0,
+    rho=1.0,
+    beta=0.0,
+    gravity=(0.0, 0.0, 0.0),
+):
     """A strip clamped at x = 0; returns (model, node ids at the tip x = length, points)."""
     pts, quads = fp.mesh.rectangle(length, width, nx, ny)
     b = fp.ModelBuilder(gravity=gravity)

@@ -2,10 +2,10 @@
 
 import numpy as np
 import pytest
-from conftest import strip_model
 from scipy.signal import find_peaks
 
 import flexparcel as fp
+from conftest import strip_model
 
 # Strip of Sze case 3.1 with rho chosen so that f1 = 10.00 Hz (omega1 = 62.83 rad/s).
 L, B, H, RHO = 10.0, 1.0, 0.1, 3.1314e-4
@@ -26,8 +26,14 @@ def _mode_like_state(model, v0):
 def _energy_error(dt, v0=60.0, t_end=0.3):
     b, tip, _ = strip_model(L, B, H, 8, rho=RHO)
     model = b.finalize()
-    opt = fp.IntegratorOptions(rho_inf=1.0, adaptive=False, dt_initial=dt, dt_max=1.0,
-                               tol_displacement=1e-7, reuse_factorization=False)
+    opt = fp.IntegratorOptions(
+        rho_inf=1.0,
+        adaptive=False,
+        dt_initial=dt,
+        dt_max=1.0,
+        tol_displacement=1e-7,
+        reuse_factorization=False,
+    )
     r = fp.simulate(model, t_end, dt_out=0.004, options=opt, state=_mode_like_state(model, v0))
     e = r.energies["total"]
     return np.abs(e - e[0]).max() / e[0], np.abs(r.positions[:, tip, 2]).max()
@@ -68,11 +74,21 @@ def test_rayleigh_damping_decay_of_first_mode():
 def _swing_tip(dt, nx=6, t_end=0.12):
     # the paper's sheet, coarse: a genuinely nonlinear swing under gravity
     length, width, t = 0.275, 0.2, 0.3e-3
-    b, tip, pts = strip_model(length, width, t, nx, 2, e=926e6, nu=0.1,
-                              rho=0.040 / (length * width * t), beta=1.71e-3,
-                              gravity=(0.0, 0.0, -9.81))
-    opt = fp.IntegratorOptions(adaptive=False, dt_initial=dt, dt_max=1.0, tol_displacement=1e-9,
-                               reuse_factorization=False)
+    b, tip, pts = strip_model(
+        length,
+        width,
+        t,
+        nx,
+        2,
+        e=926e6,
+        nu=0.1,
+        rho=0.040 / (length * width * t),
+        beta=1.71e-3,
+        gravity=(0.0, 0.0, -9.81),
+    )
+    opt = fp.IntegratorOptions(
+        adaptive=False, dt_initial=dt, dt_max=1.0, tol_displacement=1e-9, reuse_factorization=False
+    )
     r = fp.simulate(b.finalize(), t_end, dt_out=t_end, options=opt)
     return r.positions[-1, tip].mean(axis=0)
 
@@ -91,9 +107,18 @@ def test_adaptive_run_matches_fine_fixed_step():
     # the default adaptive controller (local error tol 2e-5 m per step) lands within 1 mm of a
     # fine fixed-step run after 0.12 s of swing (errors accumulate over ~50 steps)
     length, width, t = 0.275, 0.2, 0.3e-3
-    b, tip, _ = strip_model(length, width, t, 6, 2, e=926e6, nu=0.1,
-                            rho=0.040 / (length * width * t), beta=1.71e-3,
-                            gravity=(0.0, 0.0, -9.81))
+    b, tip, _ = strip_model(
+        length,
+        width,
+        t,
+        6,
+        2,
+        e=926e6,
+        nu=0.1,
+        rho=0.040 / (length * width * t),
+        beta=1.71e-3,
+        gravity=(0.0, 0.0, -9.81),
+    )
     r = fp.simulate(b.finalize(), 0.12, dt_out=0.12)
     ref = _swing_tip(1.25e-4)
     assert np.linalg.norm(r.positions[-1, tip].mean(axis=0) - ref) < 1e-3

@@ -6,11 +6,10 @@ cantilever frequencies; Leissa 1973).
 
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
-from conftest import reference_dir, strip_model
 
 import flexparcel as fp
-from flexparcel.integrate import assembly as asm
+from conftest import reference_dir, strip_model
+from flexparcel import verification
 
 
 # --------------------------------------------------------------------------- patch tests
@@ -75,16 +74,12 @@ def test_sze_31_cantilever_end_shear_all_load_levels():
     # Tolerance: the table is printed to 3 decimals (+-5e-4 absolute) and is itself within 0.1 %
     # of the elastica; our flat facets add a chord error ~ (dtheta)^2 / 24 with dtheta the tip
     # rotation / 16 (< 1.4 rad / 16, i.e. < 0.03 %). Allowed: 0.5 % of the value + 1e-3 absolute.
-    ref = np.loadtxt(reference_dir() / "verification/sze2004_cantilever_end_shear.csv",
-                     delimiter=",", skiprows=1)
-    b, tip, _ = strip_model(10.0, 1.0, 0.1, 16)
-    b.add_force(tip, (0.0, 0.0, 4.0 / len(tip)))
-    res = fp.solve_static(b.finalize(), load_steps=20)
-    np.testing.assert_allclose(res.load_factors, ref[:, 0], atol=1e-12)
-    minus_u = -res.displacements[:, tip, 0].mean(axis=1)
-    w = res.displacements[:, tip, 2].mean(axis=1)
-    assert np.all(np.abs(minus_u - ref[:, 1]) <= 5e-3 * ref[:, 1] + 1e-3)
-    assert np.all(np.abs(w - ref[:, 2]) <= 5e-3 * ref[:, 2] + 1e-3)
+    r = verification.sze_end_shear(
+        reference_dir() / "verification/sze2004_cantilever_end_shear.csv"
+    )
+    np.testing.assert_allclose(r["load_fraction"], np.arange(1, 21) / 20, atol=1e-12)
+    assert np.all(np.abs(r["minus_u"] - r["ref_minus_u"]) <= 5e-3 * r["ref_minus_u"] + 1e-3)
+    assert np.all(np.abs(r["w"] - r["ref_w"]) <= 5e-3 * r["ref_w"] + 1e-3)
 
 
 def test_sze_32_end_moment_rolls_into_full_circle():
@@ -93,22 +88,17 @@ def test_sze_32_end_moment_rolls_into_full_circle():
     # A pure moment gives constant curvature; a co-rotational flat-facet strip represents it as
     # an inscribed polygon whose vertices lie on the exact circle up to O(dtheta^2) with
     # dtheta = 2 pi / 16: tolerance 2e-3 L at every level and 1e-6 L at the closed circle.
-    ref = np.loadtxt(reference_dir() / "verification/sze2004_cantilever_end_moment.csv",
-                     delimiter=",", skiprows=1)
-    length = 12.0
-    mmax = 50.0 * np.pi / 3.0
-    b, tip, _ = strip_model(length, 1.0, 0.1, 16)
-    b.add_moment(tip, (0.0, -mmax / len(tip), 0.0), follower=True)
-    res = fp.solve_static(b.finalize(), load_steps=20)
-    th = 2.0 * np.pi * res.load_factors
-    r = length / th
-    minus_u = -res.displacements[:, tip, 0].mean(axis=1)
-    w = res.displacements[:, tip, 2].mean(axis=1)
-    assert np.abs(minus_u - (length - r * np.sin(th))).max() <= 2e-3 * length
-    assert np.abs(w - r * (1.0 - np.cos(th))).max() <= 2e-3 * length
-    assert abs(minus_u[-1] - length) <= 1e-6 * length and abs(w[-1]) <= 1e-6 * length
+    r = verification.sze_end_moment()
+    assert r["max_err_over_L"] <= 2e-3
+    assert r["closed_circle_err_over_L"] <= 1e-6
     # the published table agrees with the exact formula it was derived from
-    assert np.abs(ref[:, 2] - r * (1 - np.cos(th))).max() <= 1e-3
+    ref = np.loadtxt(
+        reference_dir() / "verification/sze2004_cantilever_end_moment.csv",
+        delimiter=",",
+        skiprows=1,
+    )
+    th = 2.0 * np.pi * ref[:, 0]
+    assert np.abs(ref[:, 2] - 12.0 / th * (1 - np.cos(th))).max() <= 1e-3
 
 
 def test_sze_31_mesh_convergence():
@@ -141,49 +131,19 @@ def test_no_shear_locking_thin_cantilever(slenderness):
 
 
 # --------------------------------------------------------------------------- frequencies
-def _eigen(model, k=8):
-    zeros = np.zeros((model.node_count, 6))
-    _, dk, _, _ = asm.internal_forces_and_tangent(
-        model, model.positions0, np.tile(np.eye(3), (model.node_count, 1, 1)), zeros)
-    kmat = asm.csr_from_data(model, dk)
-    import scipy.sparse as sp
-
-    mmat = sp.diags(asm.free_vector(model, model.mass))
-    vals, vecs = spla.eigsh(kmat.tocsc(), k=k, M=mmat.tocsc(), sigma=0.0)
-    return np.sqrt(np.abs(vals)) / (2.0 * np.pi), vecs
-
-
 def test_cantilever_strip_bending_frequencies():
     # omega_n = (beta_n L)^2 sqrt(EI / (rho A L^4)); strip 3.1 with rho = 3.1314e-4 -> f1 = 10 Hz.
     # 16 elements with lumped mass: f1 within 0.5 %, f2 within 1.5 %, f3 within 3 % (lumped-mass
     # beam error grows like (n / N)^2).
-    b, tip, _ = strip_model(10.0, 1.0, 0.1, 16, rho=3.1314e-4)
-    model = b.finalize()
-    f, vecs = _eigen(model, k=10)
-    ei, rho_a, length = 100.0, 3.1314e-4 * 0.1, 10.0
-    exact = np.array([1.87510, 4.69409, 7.85476]) ** 2 * np.sqrt(ei / (rho_a * length**4))
-    exact /= 2.0 * np.pi
-    assert exact[0] == pytest.approx(10.0, rel=1e-3)
-    # keep out-of-plane bending modes: the tip nodes move in z together
-    wz = []
-    for i in range(vecs.shape[1]):
-        full = np.zeros(6 * model.node_count)
-        full[model.free_index >= 0] = vecs[:, i]
-        z = full.reshape(-1, 6)[tip, 2]
-        wz.append(np.sign(z[0]) == np.sign(z[1]) and np.abs(z).min() > 1e-3 * np.abs(
-            full.reshape(-1, 6)[:, :3]).max())
-    fb = np.sort(f[np.array(wz)])[:3]
-    assert np.all(np.abs(fb / exact - 1.0) <= np.array([5e-3, 1.5e-2, 3e-2])), (fb, exact)
+    r = verification.strip_frequencies()
+    assert r["exact_hz"][0] == pytest.approx(10.0, rel=1e-3)
+    assert np.all(np.abs(r["rel_err"]) <= np.array([5e-3, 1.5e-2, 3e-2])), r
 
 
 @pytest.mark.slow
 def test_cantilever_plate_frequencies_leissa():
     # Square CFFF plate, nu = 0.3, lambda = omega a^2 sqrt(rho h / D) = 3.492, 8.525, 21.43
-    # (Leissa 1973). 12x12 mesh: within 3 % (DKT with lumped mass converges from below/above
-    # at O(h^2); 12 elements per side resolve the third mode with ~4 elements per half-wave).
-    a, t, e, nu, rho = 1.0, 0.01, 1e9, 0.3, 1000.0
-    b, _, _ = strip_model(a, a, t, 12, 12, e=e, nu=nu, rho=rho)
-    f, _ = _eigen(b.finalize(), k=6)
-    d = e * t**3 / (12 * (1 - nu**2))
-    lam = 2 * np.pi * np.sort(f)[:3] * a**2 * np.sqrt(rho * t / d)
-    np.testing.assert_allclose(lam, [3.492, 8.525, 21.43], rtol=3e-2)
+    # (Leissa 1973). 12x12 mesh: within 3 % (DKT with lumped mass converges at O(h^2); 12
+    # elements per side resolve the third mode with ~4 elements per half-wave).
+    r = verification.plate_frequencies(12)
+    assert np.all(np.abs(r["rel_err"]) <= 3e-2), r

@@ -6,9 +6,8 @@ relative (of the largest entry) shows the analytic/complex-step tangent is the t
 """
 
 import numpy as np
-from conftest import strip_model
 
-import flexparcel as fp
+from conftest import strip_model
 from flexparcel.elements import shell
 from flexparcel.elements.rotations import rotation_exp, rotation_log, tangent, tangent_inv
 from flexparcel.integrate import assembly as asm
@@ -43,8 +42,9 @@ def test_shell_force_is_gradient_of_strain_energy():
     shell.element_forces(tris, kl, xloc, frames, np.zeros(1), x, rot, zero, out)
 
     def energy(xx, rr):
-        return shell.element_forces(tris, kl, xloc, frames, np.zeros(1), xx, rr, zero,
-                                    np.zeros((3, 6)))
+        return shell.element_forces(
+            tris, kl, xloc, frames, np.zeros(1), xx, rr, zero, np.zeros((3, 6))
+        )
 
     g = np.zeros(18)
     for a in range(3):
@@ -68,8 +68,9 @@ def test_shell_stiffness_and_damping_tangents_match_finite_differences():
     beta = np.array([0.05])
     emap = np.arange(324).reshape(1, 18, 18)
     dk, dc = np.zeros(325), np.zeros(325)
-    shell.element_tangents(tris, kl, xloc, frames, beta, x, rot, vel, np.zeros((3, 6)), dk, dc,
-                           emap)
+    shell.element_tangents(
+        tris, kl, xloc, frames, beta, x, rot, vel, np.zeros((3, 6)), dk, dc, emap
+    )
     k = dk[:324].reshape(18, 18)
     c = dc[:324].reshape(18, 18)
     kfd, cfd = np.zeros((18, 18)), np.zeros((18, 18))
@@ -78,21 +79,27 @@ def test_shell_stiffness_and_damping_tangents_match_finite_differences():
             xp, xm = x.copy(), x.copy()
             xp[a, i] += EPS
             xm[a, i] -= EPS
-            kfd[:, 6 * a + i] = (_forces(tris, kl, xloc, frames, beta, xp, rot, vel)
-                                 - _forces(tris, kl, xloc, frames, beta, xm, rot, vel)) / (2 * EPS)
+            kfd[:, 6 * a + i] = (
+                _forces(tris, kl, xloc, frames, beta, xp, rot, vel)
+                - _forces(tris, kl, xloc, frames, beta, xm, rot, vel)
+            ) / (2 * EPS)
             e = np.zeros(3)
             e[i] = EPS
             rp, rm = rot.copy(), rot.copy()
             rp[a] = rotation_exp(e) @ rot[a]
             rm[a] = rotation_exp(-e) @ rot[a]
-            kfd[:, 6 * a + 3 + i] = (_forces(tris, kl, xloc, frames, beta, x, rp, vel)
-                                     - _forces(tris, kl, xloc, frames, beta, x, rm, vel)) / (2 * EPS)
+            kfd[:, 6 * a + 3 + i] = (
+                _forces(tris, kl, xloc, frames, beta, x, rp, vel)
+                - _forces(tris, kl, xloc, frames, beta, x, rm, vel)
+            ) / (2 * EPS)
         for j in range(6):
             vp, vm = vel.copy(), vel.copy()
             vp[a, j] += EPS
             vm[a, j] -= EPS
-            cfd[:, 6 * a + j] = (_forces(tris, kl, xloc, frames, beta, x, rot, vp)
-                                 - _forces(tris, kl, xloc, frames, beta, x, rot, vm)) / (2 * EPS)
+            cfd[:, 6 * a + j] = (
+                _forces(tris, kl, xloc, frames, beta, x, rot, vp)
+                - _forces(tris, kl, xloc, frames, beta, x, rot, vm)
+            ) / (2 * EPS)
     assert np.abs(k - kfd).max() <= RTOL * np.abs(kfd).max()
     assert np.abs(c - cfd).max() <= RTOL * np.abs(cfd).max()
 
@@ -129,8 +136,7 @@ def test_assembled_static_tangent_with_follower_loads():
         fint, _ = asm.internal_forces(model, st.positions, st.rotations, zeros)
         return asm.free_vector(model, fint - asm.external_forces(model, 0.0, st.rotations))
 
-    _, data, _, _ = asm.internal_forces_and_tangent(model, state.positions, state.rotations,
-                                                    zeros)
+    _, data, _, _ = asm.internal_forces_and_tangent(model, state.positions, state.rotations, zeros)
     asm.add_follower_tangent(model, data, 0.0, state.rotations)
     k = asm.csr_from_data(model, data).toarray()
     kfd = np.zeros_like(k)

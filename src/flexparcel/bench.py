@@ -35,7 +35,7 @@ def _sheet_swing(quick: bool = False, progress=None) -> dict:
     return {
         "case": "sheet-swing",
         "description": "275x200 mm sheet, 10 mm quads, E=926 MPa, nu=0.1, beta=1.71e-3 s, "
-                       "t=0.3 mm, 40 g, 20 mm clamped, released horizontal under gravity",
+        "t=0.3 mm, 40 g, 20 mm clamped, released horizontal under gravity",
         "simulated_s": case.t_end,
         "wall_s": wall,
         "dof_count": model.dof_count,
@@ -62,8 +62,9 @@ def run_case(name: str, quick: bool = False, progress=None) -> dict:
     return CASES[name](quick=quick, progress=progress)
 
 
-def run_benchmarks(names: list[str], out: Path, quick: bool = False, progress_factory=None
-                   ) -> list[dict]:
+def run_benchmarks(
+    names: list[str], out: Path, quick: bool = False, progress_factory=None
+) -> list[dict]:
     from flexparcel import __version__
     from flexparcel.io.results import atomic_write_bytes
 
@@ -73,8 +74,12 @@ def run_benchmarks(names: list[str], out: Path, quick: bool = False, progress_fa
         results.append(run_case(name, quick=quick, progress=prog))
     doc = {
         "flexparcel_version": __version__,
-        "machine": {"python": platform.python_version(), "processor": platform.processor(),
-                    "machine": platform.machine(), "numpy": np.__version__},
+        "machine": {
+            "python": platform.python_version(),
+            "processor": platform.processor(),
+            "machine": platform.machine(),
+            "numpy": np.__version__,
+        },
         "quick": quick,
         "results": results,
     }

@@ -45,8 +45,9 @@ class SimulationResult:
 
 
 def _energies(model: Model, state: State) -> tuple[float, float, float]:
-    _, strain = asm.internal_forces(model, state.positions, state.rotations,
-                                    np.zeros_like(state.velocities))
+    _, strain = asm.internal_forces(
+        model, state.positions, state.rotations, np.zeros_like(state.velocities)
+    )
     kin = asm.kinetic_energy(model, state.velocities)
     grav = -float(np.sum(model.mass[:, :3] * model.gravity * (state.positions - model.positions0)))
     return kin, strain, grav
@@ -69,7 +70,7 @@ def simulate(
     """
     if not (np.isfinite(t_end) and t_end > 0):
         raise ValueError(f"simulate: t_end must be > 0 s, got {t_end!r}")
-    s = (state.copy() if state is not None else model.initial_state())
+    s = state.copy() if state is not None else model.initial_state()
     t0 = s.time
     if not t_end > t0:
         raise ValueError(f"simulate: t_end = {t_end} s must be after the state's time {t0} s")
@@ -83,8 +84,10 @@ def simulate(
     out_times = t0 + dt_out * np.arange(1, n_out + 1)
     if out_times.size == 0 or out_times[-1] < t_end - 1e-12:
         out_times = np.append(out_times, t_end)
-    breaks = sorted({float(b) for sch in model.schedules for b in sch.breakpoints()}
-                    | {float(b) for b in model.gravity_schedule.breakpoints()})
+    breaks = sorted(
+        {float(b) for sch in model.schedules for b in sch.breakpoints()}
+        | {float(b) for b in model.gravity_schedule.breakpoints()}
+    )
     breaks = [b for b in breaks if t0 < b < t_end]
     rec_t, rec_x, rec_r, rec_v, rec_e = [], [], [], [], []
 
@@ -115,8 +118,12 @@ def simulate(
         positions=np.array(rec_x),
         rotation_vectors=np.array(rec_r),
         velocities=np.array(rec_v),
-        energies={"kinetic": e[:, 0], "strain": e[:, 1], "gravity": e[:, 2],
-                  "total": e.sum(axis=1)},
+        energies={
+            "kinetic": e[:, 0],
+            "strain": e[:, 1],
+            "gravity": e[:, 2],
+            "total": e.sum(axis=1),
+        },
         final_state=s,
         stats=st,
     )

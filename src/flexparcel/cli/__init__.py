@@ -18,6 +18,7 @@ __all__ = ["main", "build_parser"]
 _COMMAND_MODULES = (
     "flexparcel.cli.demo_cmd",
     "flexparcel.cli.bench_cmd",
+    "flexparcel.cli.verify_cmd",
     "flexparcel.cli.calibrate_cmd",
     "flexparcel.cli.select_cmd",
 )

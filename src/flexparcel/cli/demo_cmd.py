@@ -9,10 +9,13 @@ from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="run the sheet swing demo (results, ParaView, PNG)",
-                       description="Swing a 275 x 200 mm packaging sheet clamped along 20 mm "
-                       "of its length under gravity and write results, ParaView files and a "
-                       "plot of the free-end displacement.")
+    p = sub.add_parser(
+        "demo",
+        help="run the sheet swing demo (results, ParaView, PNG)",
+        description="Swing a 275 x 200 mm packaging sheet clamped along 20 mm "
+        "of its length under gravity and write results, ParaView files and a "
+        "plot of the free-end displacement.",
+    )
     p.add_argument("--out", type=Path, default=Path("out/demo"), help="output directory")
     p.add_argument("--t-end", type=float, default=1.4, help="simulated time [s] (default 1.4)")
     p.add_argument("--element-size", type=float, default=10.0, help="mesh size [mm]")
@@ -38,20 +41,22 @@ def run(args: argparse.Namespace) -> int:
     model, tip = sheet_swing_model(case)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
-    print(f"sheet swing: {model.node_count} nodes, {model.dof_count} DOF, "
-          f"{case.t_end} s simulated")
+    print(f"sheet swing: {model.node_count} nodes, {model.dof_count} DOF, {case.t_end} s simulated")
     t0 = time.perf_counter()
-    res = simulate(model, case.t_end, dt_out=0.01,
-                   progress=ProgressLine("swing", enabled=not args.no_progress))
+    res = simulate(
+        model, case.t_end, dt_out=0.01, progress=ProgressLine("swing", enabled=not args.no_progress)
+    )
     wall = time.perf_counter() - t0
     u = res.positions[:, tip].mean(axis=1) - model.positions0[tip].mean(axis=0)
     save_result(out / "results.npz", res, model, {"case": "sheet-swing"})
     pvd = write_paraview(out / "paraview", res, model, name="sheet")
-    png = plot_time_series(out / "free_end_displacement.png", res.time,
-                           {"u_x (along the length)": 1e3 * u[:, 0],
-                            "u_z (vertical)": 1e3 * u[:, 2]},
-                           ylabel="free-end displacement [mm]",
-                           title="Sheet swing: mean displacement of the free end")
+    png = plot_time_series(
+        out / "free_end_displacement.png",
+        res.time,
+        {"u_x (along the length)": 1e3 * u[:, 0], "u_z (vertical)": 1e3 * u[:, 2]},
+        ylabel="free-end displacement [mm]",
+        title="Sheet swing: mean displacement of the free end",
+    )
     summary = {
         "case": "sheet-swing",
         "simulated_s": case.t_end,
@@ -65,8 +70,9 @@ def run(args: argparse.Namespace) -> int:
         "mass_kg": model.total_mass(),
         "finite": bool(np.all(np.isfinite(res.positions))),
     }
-    atomic_write_bytes(out / "summary.json",
-                       lambda f: f.write(json.dumps(summary, indent=2).encode()))
+    atomic_write_bytes(
+        out / "summary.json", lambda f: f.write(json.dumps(summary, indent=2).encode())
+    )
     print(json.dumps(summary, indent=2))
     print(f"results:  {out / 'results.npz'}\nparaview: {pvd}\nplot:     {png}")
     return 0

@@ -27,8 +27,10 @@ class ProgressLine:
         frac = min(1.0, t / t_end) if t_end > 0 else 1.0
         eta = wall * (1.0 - frac) / frac if frac > 0 else float("nan")
         bar = "#" * int(30 * frac)
-        self.stream.write(f"\r{self.label} [{bar:<30}] t = {t:.4f}/{t_end:g} s  "
-                          f"wall {wall:6.1f} s  ETA {eta:6.1f} s")
+        self.stream.write(
+            f"\r{self.label} [{bar:<30}] t = {t:.4f}/{t_end:g} s  "
+            f"wall {wall:6.1f} s  ETA {eta:6.1f} s"
+        )
         if t >= t_end:
             self.stream.write("\n")
         self.stream.flush()

@@ -34,8 +34,14 @@ import numpy as np
 
 from flexparcel.elements.rotations import matmul, rotation_log, skew, tangent_inv
 
-__all__ = ["DRILLING_ALPHA", "local_stiffness", "reference_frames", "element_forces",
-           "element_tangents", "material_tangents"]
+__all__ = [
+    "DRILLING_ALPHA",
+    "local_stiffness",
+    "reference_frames",
+    "element_forces",
+    "element_tangents",
+    "material_tangents",
+]
 
 DRILLING_ALPHA = 1e-3
 _CS_STEP = 1e-30  # complex-step size: no subtractive cancellation, so any tiny h is exact

@@ -28,8 +28,15 @@ def internal_forces(model: Model, positions, rotations, velocities) -> tuple[np.
     """Internal (elastic + Rayleigh damping) nodal forces (n, 6) [N, N m] and strain energy [J]."""
     out = np.zeros((model.node_count, 6))
     energy = shell.element_forces(
-        model.triangles, model.tri_kl, model.tri_xloc, model.tri_frame0, model.tri_beta,
-        positions, rotations, velocities, out,
+        model.triangles,
+        model.tri_kl,
+        model.tri_xloc,
+        model.tri_frame0,
+        model.tri_beta,
+        positions,
+        rotations,
+        velocities,
+        out,
     )
     return out, energy
 
@@ -49,8 +56,18 @@ def internal_forces_and_tangent(
     data_c = np.zeros(model.nnz + 1)
     kernel = shell.element_tangents if consistent else shell.material_tangents
     energy = kernel(
-        model.triangles, model.tri_kl, model.tri_xloc, model.tri_frame0, model.tri_beta,
-        positions, rotations, velocities, out, data_k, data_c, model.tri_emap,
+        model.triangles,
+        model.tri_kl,
+        model.tri_xloc,
+        model.tri_frame0,
+        model.tri_beta,
+        positions,
+        rotations,
+        velocities,
+        out,
+        data_k,
+        data_c,
+        model.tri_emap,
     )
     return out, data_k, data_c, energy
 

@@ -30,7 +30,6 @@ the step. Below ``dt_min`` the run stops with :class:`ConvergenceError`.
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -84,7 +83,9 @@ class IntegratorOptions:
             raise ValueError("IntegratorOptions.max_newton must be >= 1")
         if self.tangent not in ("material", "consistent"):
             raise ValueError(
-                f"IntegratorOptions.tangent must be 'material' or 'consistent', got {self.tangent!r}")
+                "IntegratorOptions.tangent must be 'material' or 'consistent', "
+                f"got {self.tangent!r}"
+            )
 
 
 @dataclass
@@ -94,8 +95,9 @@ class Stats:
     newton_iterations: int = 0
     factorizations: int = 0
     tangent_assemblies: int = 0
-    wall_s: dict = field(default_factory=lambda: {"tangent": 0.0, "factor": 0.0, "solve": 0.0,
-                                                  "residual": 0.0})
+    wall_s: dict = field(
+        default_factory=lambda: {"tangent": 0.0, "factor": 0.0, "solve": 0.0, "residual": 0.0}
+    )
 
 
 class GeneralizedAlpha:
@@ -121,8 +123,10 @@ class GeneralizedAlpha:
         self._free_ids = np.flatnonzero(self._free)
         self._mfree = model.mass.ravel()[self._free]
         tri = model.tri_xloc
-        area = 0.5 * np.abs((tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
-                            - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1]))
+        area = 0.5 * np.abs(
+            (tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
+            - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1])
+        )
         self.elem_size = float(np.sqrt(np.mean(area)))
         # corrections below this are round-off in the positions, not Newton error
         self._floor = 1e-13 * max(1.0, float(np.abs(model.positions0).max()))
@@ -160,9 +164,11 @@ class GeneralizedAlpha:
         t2 = np.sum(theta * theta, axis=1)
         small = t2 < 1e-4
         tt = np.sqrt(np.where(small, 1.0, t2))
-        c = np.where(small, 1.0 / 12.0 + t2 / 720.0,
-                     (1.0 - 0.5 * tt / np.tan(0.5 * np.where(small, 1.0, tt))) / np.where(
-                         small, 1.0, t2))
+        c = np.where(
+            small,
+            1.0 / 12.0 + t2 / 720.0,
+            (1.0 - 0.5 * tt / np.tan(0.5 * np.where(small, 1.0, tt))) / np.where(small, 1.0, t2),
+        )
         blocks = np.zeros((n, 6, 6))
         blocks[:, :3, :3] = np.eye(3)
         blocks[:, 3:, 3:] = np.eye(3) - 0.5 * w + c[:, None, None] * (w @ w)
@@ -191,7 +197,6 @@ class GeneralizedAlpha:
         apply_spins(s1.rotations, theta)
         tol = self.opt.newton_tol * self.opt.tol_displacement
         prev = None
-        fresh_tangent = False
         tangent_iter = None  # iteration (of this step) whose state the tangent was built at
         diverging = 0
         # a step that had to rebuild its tangent suggests the next one will too: do it upfront
@@ -199,16 +204,17 @@ class GeneralizedAlpha:
         self._refresh_next = False
         for it in range(1, self.opt.max_newton + 1):
             a1, qdd, v1 = self._kinematics(
-                s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h)
+                s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h
+            )
             s1.velocities = v1
             t0 = _time.perf_counter()
             if refresh or self._tangent is None or not self.opt.reuse_factorization:
                 tangent_iter = it
                 fint, dk, dc, _ = asm.internal_forces_and_tangent(
-                    m, s1.positions, s1.rotations, v1, self.opt.tangent == "consistent")
+                    m, s1.positions, s1.rotations, v1, self.opt.tangent == "consistent"
+                )
                 self._tangent = (dk, dc)
                 self._factor_h = None
-                fresh_tangent = True
                 refresh = False
                 self.stats.tangent_assemblies += 1
                 self.stats.wall_s["tangent"] += _time.perf_counter() - t0
@@ -224,8 +230,10 @@ class GeneralizedAlpha:
                 # dTheta = T^-1(Theta) dphi: right-multiply C and M by that block map
                 if self.opt.tangent == "consistent":
                     tmap = self._increment_map(theta)
-                    mat = asm.csr_from_data(m, data) + (
-                        cv * asm.csr_from_data(m, dc) + sp.diags(ca * self._mfree)) @ tmap
+                    mat = (
+                        asm.csr_from_data(m, data)
+                        + (cv * asm.csr_from_data(m, dc) + sp.diags(ca * self._mfree)) @ tmap
+                    )
                 else:
                     # the material tangent is approximate anyway; without the O(|Theta|)
                     # increment map it stays symmetric and is assembled in place
@@ -258,7 +266,6 @@ class GeneralizedAlpha:
             theta = relative_rotation_vectors(s1.rotations, s0.rotations)
             norm = max(np.abs(full[:, :3]).max(), self.elem_size * np.abs(full[:, 3:]).max())
 
-
             rate = 0.0 if prev is None or prev == 0 else norm / prev
             self._worst = int(np.argmax(np.abs(full).sum(axis=1)))
             # Newton's remaining error ~ norm * rate / (1 - rate) for a contracting iteration
@@ -273,10 +280,14 @@ class GeneralizedAlpha:
                 accept_first = False
             if rate > 0.0:
                 self._last_rate = min(0.99, max(rate, 0.5 * self._last_rate))
-            if accept_first or (prev is not None and err_est <= tol) or norm <= max(
-                    1e-3 * tol, self._floor):
+            if (
+                accept_first
+                or (prev is not None and err_est <= tol)
+                or norm <= max(1e-3 * tol, self._floor)
+            ):
                 a1, qdd, v1 = self._kinematics(
-                    s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h)
+                    s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h
+                )
                 s1.velocities = v1
                 s1.accelerations = qdd
                 return s1, qdd, a1, it

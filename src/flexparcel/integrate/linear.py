@@ -78,6 +78,6 @@ def make_linear_solver(backend: str = "superlu") -> LinearSolver:
             return PardisoSolver()
         except ImportError:
             raise ValueError(
-                "linear solver backend 'pardiso' needs the pypardiso package (pip install pypardiso)"
+                "linear solver backend 'pardiso' needs pypardiso (pip install pypardiso)"
             ) from None
     raise ValueError(f"linear solver backend must be 'superlu' or 'pardiso', got {backend!r}")

@@ -80,8 +80,9 @@ def solve_static(
             dlam = target - lam
             for _cut in range(max_cuts + 1):
                 trial = state.copy()
-                ok, it = _newton(model, trial, lam + dlam, time, tol, max_iterations, solver,
-                                 span, zeros_v)
+                ok, it = _newton(
+                    model, trial, lam + dlam, time, tol, max_iterations, solver, span, zeros_v
+                )
                 total_iter += it
                 if ok:
                     break
@@ -111,8 +112,11 @@ def _newton(model, state, lam, time, tol, max_iterations, solver, span, zeros_v)
         r = asm.free_vector(model, fint - fext)
         if not np.all(np.isfinite(r)):
             return False, it
-        scale = max(np.linalg.norm(asm.free_vector(model, fext)),
-                    np.linalg.norm(asm.free_vector(model, fint)), 1e-30)
+        scale = max(
+            np.linalg.norm(asm.free_vector(model, fext)),
+            np.linalg.norm(asm.free_vector(model, fint)),
+            1e-30,
+        )
         try:
             solver.factor(asm.csr_from_data(model, data))
         except SingularMatrixError:

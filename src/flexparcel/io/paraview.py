@@ -5,13 +5,12 @@ from __future__ import annotations
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-import numpy as np
-
 __all__ = ["write_paraview"]
 
 
-def write_paraview(directory: str | Path, result, model, name: str = "shell",
-                   every: int = 1) -> Path:
+def write_paraview(
+    directory: str | Path, result, model, name: str = "shell", every: int = 1
+) -> Path:
     """Write ``DIR/name_XXXX.vtu`` and ``DIR/name.pvd``; open the ``.pvd`` in ParaView.
 
     Point data: ``displacement`` [m], ``rotation_vector`` [rad], ``velocity`` [m/s].
@@ -36,13 +35,14 @@ def write_paraview(directory: str | Path, result, model, name: str = "shell",
         meshio.write(directory / fname, mesh, binary=True)
         entries.append((float(result.time[k]), fname))
     pvd = directory / f"{name}.pvd"
-    lines = ['<?xml version="1.0"?>',
-             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-             "  <Collection>"]
-    lines += [f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(f)}/>'
-              for t, f in entries]
+    lines = [
+        '<?xml version="1.0"?>',
+        '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+        "  <Collection>",
+    ]
+    lines += [
+        f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(f)}/>' for t, f in entries
+    ]
     lines += ["  </Collection>", "</VTKFile>", ""]
     pvd.write_text("\n".join(lines))
     return pvd
-
-

@@ -54,8 +54,12 @@ def save_result(path: str | Path, result, model=None, extra_meta: dict | None = 
     for k, v in arrays.items():
         if np.issubdtype(np.asarray(v).dtype, np.floating) and not np.all(np.isfinite(v)):
             raise ValueError(f"save_result: '{k}' contains non-finite values; refusing to write")
-    meta = {"format": "flexparcel-results", "version": RESULTS_FORMAT_VERSION,
-            "stats": result.stats, **(extra_meta or {})}
+    meta = {
+        "format": "flexparcel-results",
+        "version": RESULTS_FORMAT_VERSION,
+        "stats": result.stats,
+        **(extra_meta or {}),
+    }
     arrays["meta_json"] = np.array(json.dumps(meta, default=float))
     path = Path(path)
     atomic_write_bytes(path, lambda f: np.savez_compressed(f, **arrays))

@@ -193,7 +193,9 @@ class ModelBuilder:
                 continue
             c = np.asarray(conn)
             if c.ndim != 2 or c.shape[1] != k or c.shape[0] == 0:
-                raise ValueError(f"add_shell_mesh: {name} must have shape (m>=1, {k}), got {c.shape}")
+                raise ValueError(
+                    f"add_shell_mesh: {name} must have shape (m>=1, {k}), got {c.shape}"
+                )
             if not np.issubdtype(c.dtype, np.integer):
                 raise ValueError(f"add_shell_mesh: {name} must be integers, got {c.dtype}")
             c = c.astype(np.int64)

@@ -12,7 +12,11 @@ __all__ = ["rectangle", "quads_to_triangles", "triangle_areas"]
 
 
 def rectangle(
-    length: float, width: float, nx: int, ny: int, origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    length: float,
+    width: float,
+    nx: int,
+    ny: int,
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> tuple[np.ndarray, np.ndarray]:
     """Structured quad mesh of a ``length`` x ``width`` rectangle [m] in the xy-plane.
 

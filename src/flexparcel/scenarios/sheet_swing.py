@@ -50,8 +50,7 @@ def sheet_swing_model(case: SheetSwing | None = None) -> tuple[Model, np.ndarray
     ny = max(1, round(c.width / c.element_size))
     pts, quads = mesh.rectangle(c.length, c.width, nx, ny)
     b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
-    mat = ShellMaterial(c.youngs_modulus, c.poisson_ratio, c.density, c.thickness,
-                        c.damping_ratio)
+    mat = ShellMaterial(c.youngs_modulus, c.poisson_ratio, c.density, c.thickness, c.damping_ratio)
     ids = b.add_shell_mesh(pts, quads, material=mat)
     b.clamp(ids[pts[:, 0] <= c.clamped_length + 1e-9])
     return b.finalize(), ids[np.isclose(pts[:, 0], c.length)]

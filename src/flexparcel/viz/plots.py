@@ -9,8 +9,9 @@ import numpy as np
 __all__ = ["plot_time_series"]
 
 
-def plot_time_series(path: str | Path, time: np.ndarray, series: dict[str, np.ndarray],
-                     *, ylabel: str, title: str) -> Path:
+def plot_time_series(
+    path: str | Path, time: np.ndarray, series: dict[str, np.ndarray], *, ylabel: str, title: str
+) -> Path:
     """Plot each named series against time [s] into a PNG at ``path``."""
     import matplotlib
 

@@ -1,0 +1,37 @@
+"""``flexparcel verify``: run the structural verification cases and report their errors."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "verify",
+        help="run the verification cases (Sze 2004, frequencies)",
+        description="Run the structural verification cases against the "
+        "published references and print the maximum errors as JSON.",
+    )
+    p.add_argument(
+        "--reference",
+        type=Path,
+        default=Path("../shared/reference/verification"),
+        help="folder with the Sze 2004 CSV tables",
+    )
+    p.add_argument("--out", type=Path, default=None, help="also write the JSON here")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from flexparcel.io.results import atomic_write_bytes
+    from flexparcel.verification import run_all
+
+    if not (args.reference / "sze2004_cantilever_end_shear.csv").is_file():
+        raise FileNotFoundError(f"--reference {args.reference}: sze2004 tables not found")
+    text = json.dumps(run_all(args.reference), indent=2)
+    print(text)
+    if args.out:
+        atomic_write_bytes(args.out, lambda f: f.write(text.encode()))
+    return 0
