@@ -17,6 +17,7 @@ demo: $(STAMP)
 	$(BIN)/flexparcel demo --out $(OUT)/demo
 
 test: $(STAMP)
+	$(BIN)/ruff check src tests examples
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
 	$(BIN)/python -m pytest -q
 
