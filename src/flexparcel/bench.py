@@ -66,7 +66,7 @@ def run_benchmarks(
     names: list[str], out: Path, quick: bool = False, progress_factory=None
 ) -> list[dict]:
     from flexparcel import __version__
-    from flexparcel.io.results import atomic_write_bytes
+    from flexparcel.io.atomic import write_atomic
 
     results = []
     for name in names:
@@ -83,5 +83,5 @@ def run_benchmarks(
         "quick": quick,
         "results": results,
     }
-    atomic_write_bytes(out, lambda f: f.write(json.dumps(doc, indent=2).encode()))
+    write_atomic(out, json.dumps(doc, indent=2))
     return results

@@ -27,8 +27,9 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from flexparcel.cli.progress import ProgressLine
+    from flexparcel.io.atomic import write_atomic
     from flexparcel.io.paraview import write_paraview
-    from flexparcel.io.results import atomic_write_bytes, save_result
+    from flexparcel.io.results import save_result
     from flexparcel.scenarios.sheet_swing import SheetSwing, sheet_swing_model
     from flexparcel.simulate import simulate
     from flexparcel.viz.plots import plot_time_series
@@ -70,9 +71,7 @@ def run(args: argparse.Namespace) -> int:
         "mass_kg": model.total_mass(),
         "finite": bool(np.all(np.isfinite(res.positions))),
     }
-    atomic_write_bytes(
-        out / "summary.json", lambda f: f.write(json.dumps(summary, indent=2).encode())
-    )
+    write_atomic(out / "summary.json", lambda f: f.write(json.dumps(summary, indent=2).encode()))
     print(json.dumps(summary, indent=2))
     print(f"results:  {out / 'results.npz'}\nparaview: {pvd}\nplot:     {png}")
     return 0

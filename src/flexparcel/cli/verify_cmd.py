@@ -25,7 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from flexparcel.io.results import atomic_write_bytes
+    from flexparcel.io.atomic import write_atomic
     from flexparcel.verification import run_all
 
     if not (args.reference / "sze2004_cantilever_end_shear.csv").is_file():
@@ -33,5 +33,5 @@ def run(args: argparse.Namespace) -> int:
     text = json.dumps(run_all(args.reference), indent=2)
     print(text)
     if args.out:
-        atomic_write_bytes(args.out, lambda f: f.write(text.encode()))
+        write_atomic(args.out, text)
     return 0

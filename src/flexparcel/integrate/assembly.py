@@ -24,20 +24,15 @@ __all__ = [
 ]
 
 
+def _shell_data(model: Model) -> tuple:
+    """The static per-triangle arrays every shell kernel takes first."""
+    return model.triangles, model.tri_kl, model.tri_xloc, model.tri_frame0, model.tri_beta
+
+
 def internal_forces(model: Model, positions, rotations, velocities) -> tuple[np.ndarray, float]:
     """Internal (elastic + Rayleigh damping) nodal forces (n, 6) [N, N m] and strain energy [J]."""
     out = np.zeros((model.node_count, 6))
-    energy = shell.element_forces(
-        model.triangles,
-        model.tri_kl,
-        model.tri_xloc,
-        model.tri_frame0,
-        model.tri_beta,
-        positions,
-        rotations,
-        velocities,
-        out,
-    )
+    energy = shell.element_forces(*_shell_data(model), positions, rotations, velocities, out)
     return out, energy
 
 
@@ -56,11 +51,7 @@ def internal_forces_and_tangent(
     data_c = np.zeros(model.nnz + 1)
     kernel = shell.element_tangents if consistent else shell.material_tangents
     energy = kernel(
-        model.triangles,
-        model.tri_kl,
-        model.tri_xloc,
-        model.tri_frame0,
-        model.tri_beta,
+        *_shell_data(model),
         positions,
         rotations,
         velocities,

@@ -9,32 +9,15 @@ then rename), so an interrupted write never leaves a truncated results file.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["save_result", "load_result", "RESULTS_FORMAT_VERSION", "atomic_write_bytes"]
+from flexparcel.io.atomic import write_atomic
+
+__all__ = ["save_result", "load_result", "RESULTS_FORMAT_VERSION"]
 
 RESULTS_FORMAT_VERSION = 1
-
-
-def atomic_write_bytes(path: str | Path, writer) -> None:
-    """Call ``writer(fileobj)`` on a temporary file next to ``path``, then rename it."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            writer(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def save_result(path: str | Path, result, model=None, extra_meta: dict | None = None) -> Path:
@@ -62,7 +45,7 @@ def save_result(path: str | Path, result, model=None, extra_meta: dict | None = 
     }
     arrays["meta_json"] = np.array(json.dumps(meta, default=float))
     path = Path(path)
-    atomic_write_bytes(path, lambda f: np.savez_compressed(f, **arrays))
+    write_atomic(path, lambda f: np.savez_compressed(f, **arrays))
     return path
 
 
