@@ -147,3 +147,22 @@ def test_cantilever_plate_frequencies_leissa():
     # elements per side resolve the third mode with ~4 elements per half-wave).
     r = verification.plate_frequencies(12)
     assert np.all(np.abs(r["rel_err"]) <= 3e-2), r
+
+
+def test_triangle_mesh_input():
+    # triangles= input: the 16x1 strip split along one diagonal per quad (a biased split, so a
+    # looser 1 % tolerance than the crossed-diagonal quads) matches Sze 3.1 at P = Pmax, and so
+    # does a mesh mixing quads (first half) and triangles (second half).
+    pts, quads = fp.mesh.rectangle(10.0, 1.0, 16, 1)
+
+    def split(q):
+        return np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]])
+
+    for cells in ({"triangles": split(quads)}, {"quads": quads[:8], "triangles": split(quads[8:])}):
+        b = fp.ModelBuilder(gravity=(0, 0, 0))
+        ids = b.add_shell_mesh(pts, material=fp.ShellMaterial(1.2e6, 0.0, 1.0, 0.1), **cells)
+        b.clamp(ids[pts[:, 0] == 0.0])
+        tip = ids[np.isclose(pts[:, 0], 10.0)]
+        b.add_force(tip, (0.0, 0.0, 4.0 / len(tip)))
+        w = fp.solve_static(b.finalize(), load_steps=10).displacements[-1, tip, 2].mean()
+        assert w == pytest.approx(6.698, rel=1e-2)

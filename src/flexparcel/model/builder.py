@@ -426,19 +426,20 @@ def _check_orientation(cells: list[np.ndarray]) -> None:
     """Within one mesh, an edge shared by two elements must be traversed in opposite directions
     (consistent normals); the same directed edge twice means one of them is inverted."""
     edges, owner = [], []
-    for c in cells:
+    for ci, c in enumerate(cells):
         k = c.shape[1]
         for a in range(k):
             edges.append(c[:, [a, (a + 1) % k]])
-            owner.append(c)
+            owner.append(np.column_stack([np.full(len(c), ci), np.arange(len(c))]))
     e = np.concatenate(edges)
-    elem = np.concatenate([o for o in owner])
-    keys, first, counts = np.unique(e, axis=0, return_index=True, return_counts=True)
+    own = np.concatenate(owner)
+    keys, counts = np.unique(e, axis=0, return_counts=True)
     if np.any(counts > 1):
         a, b = keys[np.argmax(counts > 1)]
         idx = np.flatnonzero((e[:, 0] == a) & (e[:, 1] == b))
+        first, second = (cells[own[i, 0]][own[i, 1]].tolist() for i in idx[:2])
         raise ValueError(
-            f"add_shell_mesh: elements {elem[idx[0]].tolist()} and {elem[idx[1]].tolist()} run "
+            f"add_shell_mesh: elements {first} and {second} run "
             f"along edge ({a}, {b}) in the same direction: one of them is inverted (normals "
             "must be consistently oriented)"
         )
