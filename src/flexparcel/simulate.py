@@ -48,7 +48,7 @@ def _energies(model: Model, state: State) -> tuple[float, float, float]:
     _, strain = asm.internal_forces(
         model, state.positions, state.rotations, np.zeros_like(state.velocities)
     )
-    kin = asm.kinetic_energy(model, state.velocities)
+    kin = asm.kinetic_energy(model, state.velocities, state.rotations)
     grav = -float(np.sum(model.mass[:, :3] * model.gravity * (state.positions - model.positions0)))
     return kin, strain, grav
 

@@ -35,7 +35,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from flexparcel.elements.rotations import apply_spins, relative_rotation_vectors
+from flexparcel.elements.rotations import (
+    apply_spins,
+    relative_rotation_vectors,
+    rotation_exp,
+)
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.errors import ConvergenceError
 from flexparcel.integrate.linear import SingularMatrixError, make_linear_solver
@@ -127,7 +131,13 @@ class GeneralizedAlpha:
             (tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
             - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1])
         )
-        self.elem_size = float(np.sqrt(np.mean(area)))
+        # length that converts rotation corrections to displacements in the Newton test
+        if area.size:
+            self.elem_size = float(np.sqrt(np.mean(area)))
+        elif model.rigid_half_inner.size:
+            self.elem_size = float(np.max(model.rigid_half_inner + model.rigid_radius[:, None]))
+        else:
+            self.elem_size = 1.0
         # corrections below this are round-off in the positions, not Newton error
         self._floor = 1e-13 * max(1.0, float(np.abs(model.positions0).max()))
 
@@ -137,9 +147,17 @@ class GeneralizedAlpha:
         m = self.model
         fint, _ = asm.internal_forces(m, state.positions, state.rotations, state.velocities)
         fext = asm.external_forces(m, state.time, state.rotations)
-        qdd = np.zeros(6 * m.node_count)
-        qdd[self._free] = asm.free_vector(m, fext - fint) / self._mfree
-        state.accelerations[:] = qdd.reshape(-1, 6)
+        rhs = fext - fint
+        qdd = np.zeros((m.node_count, 6))
+        has_mass = m.mass > 0.0
+        qdd[has_mass] = rhs[has_mass] / m.mass[has_mass]
+        for k, node in enumerate(m.rigid_nodes):
+            r = state.rotations[node]
+            js = r @ m.rigid_inertia[k] @ r.T
+            w = state.velocities[node, 3:]
+            qdd[node, 3:] = np.linalg.solve(js, rhs[node, 3:] - np.cross(w, js @ w))
+        qdd[m.fixed] = 0.0
+        state.accelerations[:] = qdd
         self._alg = state.accelerations.copy()
 
     def _kinematics(self, s0: State, a0_alg, dq: np.ndarray, h: float):
@@ -152,7 +170,16 @@ class GeneralizedAlpha:
         a1[fixed] = 0.0
         qdd[fixed] = 0.0
         v1[fixed] = 0.0
+        v1[self.model.prescribed_nodes] = self.model.prescribed_velocity
         return a1, qdd, v1
+
+    def _drive_prescribed(self, s: State) -> None:
+        """Place the prescribed bodies at time ``s.time``: x = x0 + v t, R = exp(w t)."""
+        m = self.model
+        for node, vw in zip(m.prescribed_nodes, m.prescribed_velocity, strict=True):
+            s.positions[node] = m.positions0[node] + vw[:3] * s.time
+            s.rotations[node] = rotation_exp(vw[3:] * s.time)
+            s.velocities[node] = vw
 
     def _increment_map(self, theta: np.ndarray) -> sp.csr_matrix:
         """Block-diagonal d(increment)/d(spin correction) over the free DOFs: identity for
@@ -195,6 +222,7 @@ class GeneralizedAlpha:
         s1.positions = s0.positions + dq[:, :3]
         theta = dq[:, 3:].copy()
         apply_spins(s1.rotations, theta)
+        self._drive_prescribed(s1)
         tol = self.opt.newton_tol * self.opt.tol_displacement
         prev = None
         tangent_iter = None  # iteration (of this step) whose state the tangent was built at
@@ -230,6 +258,7 @@ class GeneralizedAlpha:
                 # dTheta = T^-1(Theta) dphi: right-multiply C and M by that block map
                 if self.opt.tangent == "consistent":
                     tmap = self._increment_map(theta)
+                    asm.add_rigid_inertia_tangent(m, data, s1.rotations, v1[:, 3:], ca, cv)
                     mat = (
                         asm.csr_from_data(m, data)
                         + (cv * asm.csr_from_data(m, dc) + sp.diags(ca * self._mfree)) @ tmap
@@ -239,6 +268,7 @@ class GeneralizedAlpha:
                     # increment map it stays symmetric and is assembled in place
                     data += cv * dc
                     data[m.diag_slots] += ca * self._mfree
+                    asm.add_rigid_inertia_tangent(m, data, s1.rotations, v1[:, 3:], ca, cv)
                     mat = asm.csr_from_data(m, data)
                 try:
                     self.solver.factor(mat.tocsr())
@@ -249,7 +279,10 @@ class GeneralizedAlpha:
                 self.stats.factorizations += 1
                 self.stats.wall_s["factor"] += _time.perf_counter() - t0
             fext = asm.external_forces(m, t1, s1.rotations)
-            r = asm.free_vector(m, m.mass * qdd + fint - fext)
+            inertia = m.mass * qdd
+            if m.rigid_nodes.size:
+                inertia += asm.rigid_inertial_moments(m, s1.rotations, qdd[:, 3:], v1[:, 3:])
+            r = asm.free_vector(m, inertia + fint - fext)
             if not np.all(np.isfinite(r)):
                 return None
             t0 = _time.perf_counter()

@@ -13,9 +13,11 @@ import numpy as np
 from flexparcel.elements import shell
 from flexparcel.model.materials import ShellMaterial
 from flexparcel.model.mesh import quads_to_triangles
+from flexparcel.model.rigid import PrescribedMotion, RoundedBox
 from flexparcel.model.schedule import Schedule
 
 __all__ = ["ModelBuilder", "Model", "State", "DOFS_PER_NODE"]
+# rigid bodies: see flexparcel.model.rigid (RoundedBox, PrescribedMotion)
 
 DOFS_PER_NODE = 6
 _DOF_NAMES = {"x": 0, "y": 1, "z": 2, "rx": 3, "ry": 4, "rz": 5}
@@ -70,6 +72,20 @@ class Model:
     node, shape (k, 2, 3, 3); used for the follower-load stiffness."""
     diag_slots: np.ndarray
     """CSR data slot of each free DOF's diagonal, shape (free_count,)."""
+    rigid_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Node of each rigid body (its centre of mass), shape (k,)."""
+    rigid_inertia: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
+    """Inertia about the centre in the body frame [kg m^2], shape (k, 3, 3)."""
+    rigid_half_inner: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Half sizes of each body's inner box [m], shape (k, 3) (rounded box = inner box + r)."""
+    rigid_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Edge radius of each rounded box [m], shape (k,)."""
+    rigid_rot_slots: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3), np.int64))
+    """CSR data slots of each free body's rotation-rotation block, shape (k, 3, 3)."""
+    prescribed_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Nodes moving with a prescribed constant velocity, shape (p,)."""
+    prescribed_velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    """Their [v, omega] [m/s, rad/s], shape (p, 6)."""
 
     @property
     def node_count(self) -> int:
@@ -86,11 +102,13 @@ class Model:
 
     def initial_state(self) -> State:
         n = self.node_count
+        vel = np.zeros((n, 6))
+        vel[self.prescribed_nodes] = self.prescribed_velocity
         return State(
             time=0.0,
             positions=self.positions0.copy(),
             rotations=np.tile(np.eye(3), (n, 1, 1)),
-            velocities=np.zeros((n, 6)),
+            velocities=vel,
             accelerations=np.zeros((n, 6)),
         )
 
@@ -149,6 +167,7 @@ class ModelBuilder:
     _cells: dict = field(default_factory=dict, repr=False)
     _fixed: dict = field(default_factory=dict, repr=False)
     _loads: list[_Load] = field(default_factory=list, repr=False)
+    _rigid: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
     def __post_init__(self) -> None:
@@ -260,6 +279,35 @@ class ModelBuilder:
         self._node_count += n
         return ids
 
+    def add_rigid_body(
+        self,
+        shape: RoundedBox,
+        position: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        motion: str | PrescribedMotion = "free",
+    ) -> int:
+        """Add a rigid body; returns its node id (a 6-DOF node at its centre of mass).
+
+        ``position`` [m] of the centre; body axes start aligned with the world axes.
+        ``motion``: "free", "fixed" (all 6 DOFs held), or a :class:`PrescribedMotion`.
+        """
+        if not isinstance(shape, RoundedBox):
+            raise TypeError("add_rigid_body: shape must be a RoundedBox")
+        pos = np.asarray(position, dtype=float)
+        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+            raise ValueError(
+                f"add_rigid_body: position must be 3 finite numbers [m], got {position!r}"
+            )
+        if not (motion in ("free", "fixed") or isinstance(motion, PrescribedMotion)):
+            raise ValueError(
+                "add_rigid_body: motion must be 'free', 'fixed' or a PrescribedMotion, "
+                f"got {motion!r}"
+            )
+        node = self._node_count
+        self._points.append(pos[None, :])
+        self._rigid.append((node, shape, motion))
+        self._node_count += 1
+        return node
+
     # ------------------------------------------------------------------ supports
     def _check_ids(self, what: str, node_ids) -> np.ndarray:
         ids = np.atleast_1d(np.asarray(node_ids))
@@ -324,7 +372,7 @@ class ModelBuilder:
     def finalize(self) -> Model:
         """Validate, compute element data, the lumped mass and the sparse pattern."""
         if not self._points:
-            raise ValueError("ModelBuilder.finalize: no mesh was added")
+            raise ValueError("ModelBuilder.finalize: no mesh or rigid body was added")
         pos0 = np.concatenate(self._points)
         n = len(pos0)
         tris, kls, xls, frs, betas, ws = [], [], [], [], [], []
@@ -353,15 +401,27 @@ class ModelBuilder:
             frs.append(frames)
             betas.append(np.full(len(tri), mat.damping_ratio))
             ws.append(w)
+        rigid_nodes = np.array([r[0] for r in self._rigid], dtype=np.int64)
+        rigid_inertia = np.zeros((len(self._rigid), 3, 3))
+        pres_nodes, pres_vel = [], []
+        for k, (node, shape, motion) in enumerate(self._rigid):
+            mass[node, 0] = shape.total_mass()
+            rigid_inertia[k] = shape.inertia()  # rotary inertia handled as a tensor, not in mass
+            if isinstance(motion, PrescribedMotion):
+                pres_nodes.append(node)
+                pres_vel.append(np.r_[motion.velocity, motion.angular_velocity])
         mass[:, 1] = mass[:, 2] = mass[:, 0]
         mass[:, 4] = mass[:, 5] = mass[:, 3]
-        triangles = np.concatenate(tris)
-        orphan = np.setdiff1d(np.arange(n), np.unique(triangles))
+        triangles = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
+        orphan = np.setdiff1d(np.arange(n), np.union1d(np.unique(triangles), rigid_nodes))
         if orphan.size:
             raise ValueError(f"finalize: node {int(orphan[0])} belongs to no element")
         fixed = np.zeros((n, 6), dtype=bool)
         for node, dofs in self._fixed.items():
             fixed[node, sorted(dofs)] = True
+        for node, _, motion in self._rigid:
+            if motion != "free":
+                fixed[node] = True  # held or driven: not unknowns
         loads = self._loads
         schedules: list[Schedule] = []
         ln, lv, lm, lf, ls = [], [], [], [], []
@@ -391,17 +451,17 @@ class ModelBuilder:
         if free.size == 0:
             raise ValueError("finalize: every DOF is fixed; nothing to solve")
         free_index[free] = np.arange(free.size)
-        indptr, indices, emap, load_emap, diag = _sparsity(
-            triangles, free_index, free.size, np.asarray(ln, dtype=np.int64)
+        indptr, indices, emap, load_emap, diag, rigid_slots = _sparsity(
+            triangles, free_index, free.size, np.asarray(ln, dtype=np.int64), rigid_nodes
         )
         cells = [(k, np.concatenate(v)) for k, v in self._cells.items()]
         return Model(
             positions0=pos0,
             triangles=triangles,
-            tri_kl=np.concatenate(kls),
-            tri_xloc=np.concatenate(xls),
-            tri_frame0=np.concatenate(frs),
-            tri_beta=np.concatenate(betas),
+            tri_kl=np.concatenate(kls) if kls else np.zeros((0, 18, 18)),
+            tri_xloc=np.concatenate(xls) if xls else np.zeros((0, 3, 2)),
+            tri_frame0=np.concatenate(frs) if frs else np.zeros((0, 3, 3)),
+            tri_beta=np.concatenate(betas) if betas else np.zeros(0),
             mass=mass,
             gravity=np.asarray(self.gravity, dtype=float),
             fixed=fixed,
@@ -419,6 +479,13 @@ class ModelBuilder:
             tri_emap=emap,
             load_emap=load_emap,
             diag_slots=diag,
+            rigid_nodes=rigid_nodes,
+            rigid_inertia=rigid_inertia,
+            rigid_half_inner=np.array([r[1].half_inner for r in self._rigid]).reshape(-1, 3),
+            rigid_radius=np.array([r[1].edge_radius for r in self._rigid], dtype=float),
+            rigid_rot_slots=rigid_slots,
+            prescribed_nodes=np.asarray(pres_nodes, dtype=np.int64),
+            prescribed_velocity=np.asarray(pres_vel, dtype=float).reshape(-1, 6),
         )
 
 
@@ -445,8 +512,9 @@ def _check_orientation(cells: list[np.ndarray]) -> None:
         )
 
 
-def _sparsity(triangles, free_index, nfree, load_nodes):
-    """CSR pattern over the free DOFs and the data-slot maps; slot ``nnz`` is a trash slot."""
+def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes):
+    """CSR pattern over the free DOFs and the data-slot maps; slot ``nnz`` is a trash slot.
+    ``block_nodes`` (rigid bodies) get their full 6x6 diagonal block."""
     m = len(triangles)
     dofs = (6 * triangles[:, :, None] + np.arange(6)).reshape(m, 18)
     fd = free_index[dofs]  # (m, 18)
@@ -454,8 +522,12 @@ def _sparsity(triangles, free_index, nfree, load_nodes):
     cols = np.tile(fd, (1, 18)).reshape(m, 18, 18)
     ok = (rows >= 0) & (cols >= 0)
     keys = rows[ok] * nfree + cols[ok]
-    # every free DOF gets a diagonal entry
-    keys = np.concatenate([keys, np.arange(nfree) * (nfree + 1)])
+    # every free DOF gets a diagonal entry; rigid bodies their 6x6 block
+    bd = free_index[(6 * block_nodes[:, None] + np.arange(6)).reshape(-1, 6)]
+    br = np.repeat(bd, 6, axis=1).ravel()
+    bc = np.tile(bd, (1, 6)).ravel()
+    bok = (br >= 0) & (bc >= 0)
+    keys = np.concatenate([keys, np.arange(nfree) * (nfree + 1), br[bok] * nfree + bc[bok]])
     uniq, inv = np.unique(keys, return_inverse=True)
     nnz = uniq.size
     emap = np.full((m, 18, 18), nnz, dtype=np.int64)
@@ -481,4 +553,11 @@ def _sparsity(triangles, free_index, nfree, load_nodes):
                     load_emap[k, blk, i, j] = slot(
                         free_index[6 * node + 3 * blk + i], free_index[6 * node + 3 + j]
                     )
-    return indptr, indices, emap, load_emap, diag
+    rigid_slots = np.full((len(block_nodes), 3, 3), nnz, dtype=np.int64)
+    for k, node in enumerate(block_nodes):
+        for i in range(3):
+            for j in range(3):
+                rigid_slots[k, i, j] = slot(
+                    free_index[6 * node + 3 + i], free_index[6 * node + 3 + j]
+                )
+    return indptr, indices, emap, load_emap, diag, rigid_slots
