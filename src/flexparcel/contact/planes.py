@@ -1,0 +1,138 @@
+"""Contact of points (shell nodes, rigid-box corners) with rigid planes, e.g. the ground, a
+belt or a deflector.
+
+Each contact point belongs to one node and sits at a body-frame offset ``b`` from it (zero for a
+shell node; an inner-box corner for a rounded box) with a radius ``r`` (the box's edge radius:
+a rounded box is its inner box inflated by r, so contact with it is contact with spheres of
+radius r at the inner corners, exact for a plane). With ``rho = R b`` and the plane's unit
+normal ``n`` through ``p0`` (pointing out of the solid side):
+
+    penetration  s  = r - n . (x + rho - p0)
+    contact arm  a  = rho - r n          (contact point relative to the node)
+    its velocity vc = v + w x a - v_plane   (v_plane: the surface velocity of a belt)
+    rate         s' = -n . vc,   slip  vt = vc - (n . vc) n
+
+The law (:mod:`flexparcel.contact.law`, paper eqs. 1-10) gives F_N(s, s') and the friction
+F_T(vt, F_N); the point force ``f = F_N n + F_T`` acts at the arm, i.e. ``[f, a x f]`` on the
+node. The kernel also returns the derivatives of that generalised force with respect to the
+node's position/spin and velocity/angular velocity, for the Newton tangent (terms of order
+w x (dtheta x rho) in the rate are left out).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from flexparcel.contact.law import P_MAX_PEN, friction_force_packed, normal_force_packed
+from flexparcel.elements.rotations import skew
+
+__all__ = ["plane_contact_forces"]
+
+
+@nb.njit(cache=True)
+def plane_contact_forces(
+    cp_node,
+    cp_offset,
+    cp_radius,
+    cp_plane,
+    cp_law,
+    cp_active,
+    plane_point,
+    plane_normal,
+    plane_velocity,
+    laws,
+    pos,
+    rot,
+    vel,
+    out_f,
+    out_dq,
+    out_dv,
+):
+    """Generalised contact forces of all points.
+
+    Args: point arrays (P,) / (P, 3); ``cp_active`` (P,) schedule factors in [0, 1];
+    planes (k, 3); ``laws`` (L, PACKED_SIZE); state ``pos`` (n, 3), ``rot`` (n, 3, 3),
+    ``vel`` (n, 6).
+    Outputs (accumulated): ``out_f`` (n, 6) forces [N, N m]; ``out_dq`` (P, 6, 6) and
+    ``out_dv`` (P, 6, 6) derivatives per point (zero for points not in contact).
+    Returns (number of points in contact, deepest penetration [m], its point, worst ratio of
+    penetration to the law's max_penetration).
+    """
+    n_contact = 0
+    deepest = 0.0
+    deepest_pt = -1
+    worst_ratio = 0.0
+    for q in range(cp_node.shape[0]):
+        act = cp_active[q]
+        if act == 0.0:
+            continue
+        node = cp_node[q]
+        pl = cp_plane[q]
+        n = plane_normal[pl]
+        law = laws[cp_law[q]]
+        r = rot[node]
+        rho = r @ cp_offset[q]
+        x = pos[node]
+        s = cp_radius[q] - (
+            n[0] * (x[0] + rho[0] - plane_point[pl, 0])
+            + n[1] * (x[1] + rho[1] - plane_point[pl, 1])
+            + n[2] * (x[2] + rho[2] - plane_point[pl, 2])
+        )
+        if s <= 0.0:
+            continue
+        n_contact += 1
+        if s > deepest:
+            deepest = s
+            deepest_pt = q
+        ratio = s / law[P_MAX_PEN]
+        if ratio > worst_ratio:
+            worst_ratio = ratio
+        a = rho - cp_radius[q] * n
+        w = vel[node, 3:]
+        vc = vel[node, :3] + np.cross(w, a) - plane_velocity[pl]
+        vn = n[0] * vc[0] + n[1] * vc[1] + n[2] * vc[2]
+        sdot = -vn
+        vt = vc - vn * n
+        fn, dfn_ds, dfn_dsd = normal_force_packed(s, sdot, law)
+        ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+        f = act * (fn * n + ft)
+        m = np.cross(a, f)
+        for i in range(3):
+            out_f[node, i] += f[i]
+            out_f[node, 3 + i] += m[i]
+        # derivatives of s, s', vt with respect to [dx, dtheta] and [dv, dw]
+        ds_dq = np.zeros(6)
+        ds_dq[:3] = -n
+        ds_dq[3:] = -np.cross(rho, n)
+        dsd_dv = np.zeros(6)
+        dsd_dv[:3] = -n
+        dsd_dv[3:] = -np.cross(a, n)
+        proj = np.eye(3) - np.outer(n, n)
+        dvc_dv = np.zeros((3, 6))
+        dvc_dv[:, :3] = np.eye(3)
+        dvc_dv[:, 3:] = -skew(a)
+        dvt_dv = proj @ dvc_dv
+        # force derivatives (3 x 6)
+        dfn_q = dfn_ds * ds_dq
+        dfn_v = dfn_dsd * dsd_dv
+        df_q = np.outer(n + dft_dfn, dfn_q)
+        df_v = np.outer(n + dft_dfn, dfn_v) + dft_dvt @ dvt_dv
+        df_q *= act
+        df_v *= act
+        wa = skew(a)
+        # moment a x f: d(a x f) = a x df + (dtheta x rho) x f = a x df + W(f) W(rho) dtheta
+        extra = skew(f) @ skew(rho)
+        for i in range(3):
+            for j in range(6):
+                out_dq[q, i, j] += df_q[i, j]
+                out_dv[q, i, j] += df_v[i, j]
+        mq = wa @ df_q
+        mv = wa @ df_v
+        for i in range(3):
+            for j in range(6):
+                out_dq[q, 3 + i, j] += mq[i, j]
+                out_dv[q, 3 + i, j] += mv[i, j]
+            for j in range(3):
+                out_dq[q, 3 + i, 3 + j] += extra[i, j]
+    return n_contact, deepest, deepest_pt, worst_ratio
