@@ -90,12 +90,19 @@ def test_step_derivatives(fun, dfun):
             continue
         fd = central(lambda y: fun(y, x0, h0, x1, h1), x, 1e-7)
         assert dfun(x, x0, h0, x1, h1) == pytest.approx(fd, rel=1e-6, abs=1e-7)
-    # Zero slope at the ends (C1 for STEP, and STEP5's second derivative vanishes there too).
+    # Zero slope at the ends (both are C1 joins to the constant pieces).
     for x in (x0, x1):
         assert dfun(x, x0, h0, x1, h1) == 0.0
-    h = 1e-4
-    d2 = (step5_dx(x0 + h, x0, h0, x1, h1) - step5_dx(x0, x0, h0, x1, h1)) / h
-    assert abs(d2) < 1e-5 * (h1 - h0) / (x1 - x0) ** 2 * 1e3
+
+
+def test_step5_is_c2_step_is_not():
+    # Footnote 2 of the paper: STEP is C1, STEP5 is C2. One-sided second derivative just inside
+    # x0 by a forward difference of the exact slope: STEP gives 6 (h1-h0)/(x1-x0)**2 there,
+    # STEP5 ~ 60 D (h1-h0)/(x1-x0)**2 -> 0 with D = h/(x1-x0) = 2e-5, a ratio ~ 2e-4.
+    x0, h0, x1, h1, h = 0.2, -1.0, 0.7, 3.0, 1e-5
+    curv = {f: (f(x0 + h, x0, h0, x1, h1) - f(x0, x0, h0, x1, h1)) / h for f in (step_dx, step5_dx)}
+    assert curv[step_dx] == pytest.approx(6.0 * (h1 - h0) / (x1 - x0) ** 2, rel=1e-3)
+    assert abs(curv[step5_dx]) < 1e-3 * curv[step_dx]
 
 
 # --------------------------------------------------------------------------------------------------

@@ -656,8 +656,9 @@ def stick_friction(
 ) -> tuple[np.ndarray, np.ndarray, bool, np.ndarray, np.ndarray]:
     """Elastic-slip (stick) friction by a return map over one time step.
 
-    Model (Coulomb friction as elastoplasticity; Wriggers, *Computational Contact Mechanics*,
-    2nd ed. 2006, section 5.2; Simo & Laursen 1992): the tangential relative displacement splits
+    Model (Coulomb friction treated like elastoplasticity: Simo & Laursen, Comput. Struct. 42
+    (1992) 97-116; Wriggers, *Computational Contact Mechanics*, 2nd ed., Springer 2006, on the
+    tangential constitutive law and its return map): the tangential relative displacement splits
     into an elastic part u_el, carried by a spring k_t, and a slip part. Over a step with
     tangential relative displacement increment du_t:
 
