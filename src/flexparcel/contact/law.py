@@ -263,7 +263,8 @@ class ContactLaw:
           611e3 N/m);
         * d, option "step" [N s/mm] -> [N s/m]: x 1000;
           option "indentation" [N (s/mm)**m_d / mm**m_i] -> SI: x 1000**(m_d + m_i)
-          (x 1000 for m_d = 1, m_i = 0);
+          (x 1000 for m_d = 1, m_i = 0; with the default m_i = 1 the paper-unit value is in
+          N s/mm**2 and is multiplied by 1e6 -- pass indentation_exponent=0 for plain N s/mm);
         * lengths s_max, max_penetration [mm] -> [m]: x 1e-3; speeds v_s, v_d [mm/s] -> [m/s]:
           x 1e-3; stick stiffness k_t [N/mm] -> [N/m]: x 1000.
         """
