@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from flexparcel.contact.planes import plane_contact_forces
 from flexparcel.elements.rotations import (
     apply_spins,
     relative_rotation_vectors,
@@ -123,6 +124,7 @@ class GeneralizedAlpha:
         self._refresh_next = False
         self._h_cap = np.inf
         self._last_rate = 1.0  # Newton contraction rate seen in the last step
+        self._contact_info = (0, 0.0, -1, 0.0)
         self._free = model.free_index >= 0
         self._free_ids = np.flatnonzero(self._free)
         self._mfree = model.mass.ravel()[self._free]
@@ -172,6 +174,42 @@ class GeneralizedAlpha:
         v1[fixed] = 0.0
         v1[self.model.prescribed_nodes] = self.model.prescribed_velocity
         return a1, qdd, v1
+
+    def _contact(self, s: State, t: float):
+        """Contact forces (n, 6) on the nodes and per-point derivative blocks (P, 6, 6)."""
+        m = self.model
+        fc = np.zeros((m.node_count, 6))
+        npts = m.cp_node.size
+        dq = np.zeros((npts, 6, 6))
+        dv = np.zeros((npts, 6, 6))
+        if npts == 0:
+            return fc, dq, dv, (0, 0.0, -1, 0.0)
+        act = np.array([sch(t) for sch in m.contact_schedules])[m.cp_schedule]
+        info = plane_contact_forces(
+            m.cp_node,
+            m.cp_offset,
+            m.cp_radius,
+            m.cp_plane,
+            m.cp_law,
+            act,
+            m.plane_point,
+            m.plane_normal,
+            m.plane_velocity,
+            m.contact_laws,
+            s.positions,
+            s.rotations,
+            s.velocities,
+            fc,
+            dq,
+            dv,
+        )
+        return fc, dq, dv, info
+
+    def _add_contact_tangent(self, data, cdq, cdv, cv):
+        """Residual r = ... - f_contact: add -(dF/dq + cv dF/dv) into each node's block."""
+        m = self.model
+        if m.cp_node.size:
+            np.add.at(data, m.node_block_slots[m.cp_node].ravel(), -(cdq + cv * cdv).ravel())
 
     def _drive_prescribed(self, s: State) -> None:
         """Place the prescribed bodies at time ``s.time``: x = x0 + v t, R = exp(w t)."""
@@ -235,6 +273,7 @@ class GeneralizedAlpha:
                 s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h
             )
             s1.velocities = v1
+            fc, cdq, cdv, self._contact_info = self._contact(s1, t1)
             t0 = _time.perf_counter()
             if refresh or self._tangent is None or not self.opt.reuse_factorization:
                 tangent_iter = it
@@ -259,6 +298,7 @@ class GeneralizedAlpha:
                 if self.opt.tangent == "consistent":
                     tmap = self._increment_map(theta)
                     asm.add_rigid_inertia_tangent(m, data, s1.rotations, v1[:, 3:], ca, cv)
+                    self._add_contact_tangent(data, cdq, cdv, cv)
                     mat = (
                         asm.csr_from_data(m, data)
                         + (cv * asm.csr_from_data(m, dc) + sp.diags(ca * self._mfree)) @ tmap
@@ -269,6 +309,7 @@ class GeneralizedAlpha:
                     data += cv * dc
                     data[m.diag_slots] += ca * self._mfree
                     asm.add_rigid_inertia_tangent(m, data, s1.rotations, v1[:, 3:], ca, cv)
+                    self._add_contact_tangent(data, cdq, cdv, cv)
                     mat = asm.csr_from_data(m, data)
                 try:
                     self.solver.factor(mat.tocsr())
@@ -282,7 +323,7 @@ class GeneralizedAlpha:
             inertia = m.mass * qdd
             if m.rigid_nodes.size:
                 inertia += asm.rigid_inertial_moments(m, s1.rotations, qdd[:, 3:], v1[:, 3:])
-            r = asm.free_vector(m, inertia + fint - fext)
+            r = asm.free_vector(m, inertia + fint - fext - fc)
             if not np.all(np.isfinite(r)):
                 return None
             t0 = _time.perf_counter()
@@ -358,6 +399,18 @@ class GeneralizedAlpha:
                 continue
             self._h_cap *= 1.05
             s1, qdd, a1, _ = out
+            n_contact, depth, point, ratio = self._contact_info
+            if ratio > 1.0:
+                # a contact went deeper than its law's max_penetration: retry smaller
+                self.stats.rejected_steps += 1
+                if h <= opt.dt_min * 1.0001:
+                    raise ConvergenceError(
+                        f"contact point {point} (node {int(self.model.cp_node[point])}) "
+                        f"penetrates {depth:.3g} m, beyond its max_penetration, at "
+                        f"t = {s1.time:.6g} s (step {self.stats.steps + 1}) even at dt_min"
+                    )
+                self.h = max(0.5 * h, opt.dt_min)
+                continue
             if opt.adaptive:
                 dqdd = qdd[:, :3] - state.accelerations[:, :3]
                 err = h * h * abs(self.beta - 1.0 / 6.0) * np.sqrt((dqdd**2).sum(axis=1)).max()

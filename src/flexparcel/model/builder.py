@@ -86,6 +86,27 @@ class Model:
     """Nodes moving with a prescribed constant velocity, shape (p,)."""
     prescribed_velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     """Their [v, omega] [m/s, rad/s], shape (p, 6)."""
+    node_block_slots: np.ndarray = field(default_factory=lambda: np.zeros((0, 6, 6), np.int64))
+    """CSR data slots of every node's own 6x6 block, shape (node_count, 6, 6)."""
+    plane_point: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """A point of each rigid plane [m], shape (k, 3)."""
+    plane_normal: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Unit normal of each plane, out of its solid side, shape (k, 3)."""
+    plane_velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Tangential surface velocity of each plane (a belt) [m/s], shape (k, 3)."""
+    contact_laws: np.ndarray = field(default_factory=lambda: np.zeros((0, 14)))
+    """Packed contact laws (see ContactLaw.packed), shape (L, PACKED_SIZE)."""
+    cp_node: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Node of each contact point, shape (P,)."""
+    cp_offset: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Body-frame offset of each contact point from its node [m], shape (P, 3)."""
+    cp_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Radius of each contact point [m], shape (P,)."""
+    cp_plane: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    cp_law: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    cp_schedule: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Index into ``contact_schedules`` (switching each pair on and off), shape (P,)."""
+    contact_schedules: list = field(default_factory=list)
 
     @property
     def node_count(self) -> int:
@@ -168,6 +189,8 @@ class ModelBuilder:
     _fixed: dict = field(default_factory=dict, repr=False)
     _loads: list[_Load] = field(default_factory=list, repr=False)
     _rigid: list = field(default_factory=list, repr=False)
+    _planes: list = field(default_factory=list, repr=False)
+    _contacts: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
     def __post_init__(self) -> None:
@@ -307,6 +330,65 @@ class ModelBuilder:
         self._rigid.append((node, shape, motion))
         self._node_count += 1
         return node
+
+    def add_plane(
+        self,
+        point: tuple[float, float, float],
+        normal: tuple[float, float, float],
+        surface_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> int:
+        """Add a fixed rigid plane through ``point`` [m] with ``normal`` pointing out of its
+        solid side; ``surface_velocity`` [m/s] (tangential) makes it a belt. Returns its id."""
+        p = np.asarray(point, dtype=float)
+        nrm = np.asarray(normal, dtype=float)
+        vel = np.asarray(surface_velocity, dtype=float)
+        for name, v in (("point", p), ("normal", nrm), ("surface_velocity", vel)):
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ValueError(f"add_plane: {name} must be 3 finite numbers, got {v!r}")
+        length = np.linalg.norm(nrm)
+        if length == 0.0:
+            raise ValueError("add_plane: normal must be non-zero")
+        nrm = nrm / length
+        if abs(vel @ nrm) > 1e-12 * max(1.0, np.linalg.norm(vel)):
+            raise ValueError("add_plane: surface_velocity must be tangential (normal . v = 0)")
+        self._planes.append((p, nrm, vel))
+        return len(self._planes) - 1
+
+    def add_contact(
+        self, target, plane: int, law, *, radius: float = 0.0, schedule: Schedule | None = None
+    ) -> None:
+        """Contact between ``target`` and plane ``plane`` with a :class:`ContactLaw`.
+
+        ``target``: a rigid body's node id (from :meth:`add_rigid_body`): its rounded box's
+        inner corners with its edge radius touch the plane; or an array of shell node ids with
+        a contact ``radius`` [m] (e.g. half the shell thickness). ``schedule`` switches the
+        pair on (1) and off (0) in time.
+        """
+        from flexparcel.contact.law import ContactLaw
+
+        if not isinstance(law, ContactLaw):
+            raise TypeError("add_contact: law must be a ContactLaw")
+        if not (isinstance(plane, int | np.integer) and 0 <= plane < len(self._planes)):
+            raise ValueError(
+                f"add_contact: unknown plane {plane!r}; planes are 0..{len(self._planes) - 1}"
+            )
+        r = float(radius)
+        if not (np.isfinite(r) and r >= 0.0):
+            raise ValueError(f"add_contact: radius must be >= 0 m, got {radius!r}")
+        sched = schedule if schedule is not None else Schedule.constant()
+        rigid = {node: shape for node, shape, _ in self._rigid}
+        if isinstance(target, int | np.integer) and int(target) in rigid:
+            shape = rigid[int(target)]
+            offsets = shape.corners()
+            nodes = np.full(len(offsets), int(target))
+            radii = np.full(len(offsets), shape.edge_radius)
+        else:
+            nodes = self._check_ids("add_contact", target)
+            if set(nodes.tolist()) & set(rigid):
+                raise ValueError("add_contact: give a rigid body as its single node id")
+            offsets = np.zeros((len(nodes), 3))
+            radii = np.full(len(nodes), r)
+        self._contacts.append((nodes, offsets, radii, int(plane), law, sched))
 
     # ------------------------------------------------------------------ supports
     def _check_ids(self, what: str, node_ids) -> np.ndarray:
@@ -451,9 +533,23 @@ class ModelBuilder:
         if free.size == 0:
             raise ValueError("finalize: every DOF is fixed; nothing to solve")
         free_index[free] = np.arange(free.size)
-        indptr, indices, emap, load_emap, diag, rigid_slots = _sparsity(
-            triangles, free_index, free.size, np.asarray(ln, dtype=np.int64), rigid_nodes
+        indptr, indices, emap, load_emap, diag, rigid_slots, node_slots = _sparsity(
+            triangles, free_index, free.size, np.asarray(ln, dtype=np.int64), rigid_nodes, n
         )
+        laws, law_index, csched = [], [], []
+        cpn, cpo, cpr, cpp, cpl, cps = [], [], [], [], [], []
+        for nodes, offsets, radii, plane, law, sched in self._contacts:
+            if law not in laws:
+                laws.append(law)
+            if sched not in csched:
+                csched.append(sched)
+            cpn.append(nodes)
+            cpo.append(offsets)
+            cpr.append(radii)
+            cpp.append(np.full(len(nodes), plane))
+            cpl.append(np.full(len(nodes), laws.index(law)))
+            cps.append(np.full(len(nodes), csched.index(sched)))
+        del law_index
         cells = [(k, np.concatenate(v)) for k, v in self._cells.items()]
         return Model(
             positions0=pos0,
@@ -486,6 +582,18 @@ class ModelBuilder:
             rigid_rot_slots=rigid_slots,
             prescribed_nodes=np.asarray(pres_nodes, dtype=np.int64),
             prescribed_velocity=np.asarray(pres_vel, dtype=float).reshape(-1, 6),
+            node_block_slots=node_slots,
+            plane_point=np.array([p[0] for p in self._planes]).reshape(-1, 3),
+            plane_normal=np.array([p[1] for p in self._planes]).reshape(-1, 3),
+            plane_velocity=np.array([p[2] for p in self._planes]).reshape(-1, 3),
+            contact_laws=(np.array([law.packed() for law in laws]) if laws else np.zeros((0, 14))),
+            cp_node=np.concatenate(cpn) if cpn else np.zeros(0, np.int64),
+            cp_offset=np.concatenate(cpo) if cpo else np.zeros((0, 3)),
+            cp_radius=np.concatenate(cpr) if cpr else np.zeros(0),
+            cp_plane=np.concatenate(cpp) if cpp else np.zeros(0, np.int64),
+            cp_law=np.concatenate(cpl) if cpl else np.zeros(0, np.int64),
+            cp_schedule=np.concatenate(cps) if cps else np.zeros(0, np.int64),
+            contact_schedules=csched,
         )
 
 
@@ -512,7 +620,7 @@ def _check_orientation(cells: list[np.ndarray]) -> None:
         )
 
 
-def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes):
+def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes, node_count):
     """CSR pattern over the free DOFs and the data-slot maps; slot ``nnz`` is a trash slot.
     ``block_nodes`` (rigid bodies) get their full 6x6 diagonal block."""
     m = len(triangles)
@@ -560,4 +668,13 @@ def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes):
                 rigid_slots[k, i, j] = slot(
                     free_index[6 * node + 3 + i], free_index[6 * node + 3 + j]
                 )
-    return indptr, indices, emap, load_emap, diag, rigid_slots
+    # every node's own 6x6 block (contact with fixed surfaces couples a node with itself)
+    nd = free_index[(6 * np.arange(node_count)[:, None] + np.arange(6))]  # (n, 6)
+    rr = np.repeat(nd, 6, axis=1).reshape(-1, 6, 6)
+    cc = np.tile(nd, (1, 6)).reshape(-1, 6, 6)
+    key = rr * nfree + cc
+    pos = np.searchsorted(uniq, key)
+    pos = np.minimum(pos, nnz - 1)
+    found = (rr >= 0) & (cc >= 0) & (uniq[pos] == key)
+    node_slots = np.where(found, pos, nnz).astype(np.int64)
+    return indptr, indices, emap, load_emap, diag, rigid_slots, node_slots
