@@ -20,6 +20,10 @@ __all__ = [
     "add_follower_tangent",
     "csr_from_data",
     "free_vector",
+    "nodal_from_ext",
+    "reduction",
+    "project_slaves",
+    "link_geometric_stiffness",
     "kinetic_energy",
     "rigid_inertial_moments",
     "add_rigid_inertia_tangent",
@@ -100,13 +104,92 @@ def add_follower_tangent(model: Model, data: np.ndarray, time: float, rotations,
 
 
 def csr_from_data(model: Model, data: np.ndarray) -> sp.csr_matrix:
-    n = model.dof_count
+    """The assembled matrix over the unknowns and FDR slave DOFs (``ext_count`` square)."""
+    n = model.ext_count
     return sp.csr_matrix((data[:-1], model.csr_indices, model.csr_indptr), shape=(n, n))
 
 
 def free_vector(model: Model, nodal: np.ndarray) -> np.ndarray:
-    """The free-DOF entries of a per-node array (n, 6)."""
-    return nodal.ravel()[model.free_index >= 0]
+    """A per-node array (n, 6) as a vector over the unknowns and FDR slave DOFs
+    (``ext_count``,), in the numbering of ``Model.free_index``."""
+    mask = model.free_index >= 0
+    out = np.empty(model.ext_count)
+    out[model.free_index[mask]] = nodal.ravel()[mask]
+    return out
+
+
+def nodal_from_ext(model: Model, vec: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`free_vector`: (ext_count,) -> per-node (n, 6), zero where fixed."""
+    mask = model.free_index >= 0
+    full = np.zeros(6 * model.node_count)
+    full[mask] = vec[model.free_index[mask]]
+    return full.reshape(-1, 6)
+
+
+def reduction(model: Model, rotations: np.ndarray) -> sp.csr_matrix | None:
+    """Rigid-link map T (ext_count, dof_count) from the unknowns to all assembled DOFs, or None
+    without FDRs. A slave at offset b from its master (body frame) moves as
+    ``dx_s = dx_m - W(R_m b) dphi_m``, ``dphi_s = dphi_m``; the reduced system is
+    ``T^T K T``, ``T^T r``."""
+    if model.slave_nodes.size == 0:
+        return None
+    nf, fi = model.dof_count, model.free_index
+    rows, cols, vals = [np.arange(nf)], [np.arange(nf)], [np.ones(nf)]
+    for s_node, m_node, off in zip(
+        model.slave_nodes, model.slave_master, model.slave_offset, strict=True
+    ):
+        arm = skew(rotations[m_node] @ off)
+        for i in range(6):
+            rs = fi[6 * s_node + i]
+            for j in range(6):
+                cm = fi[6 * m_node + j]
+                if cm < 0 or cm >= nf:
+                    continue  # master DOF held or prescribed
+                if i < 3:
+                    v = (1.0 if i == j else 0.0) if j < 3 else -arm[i, j - 3]
+                else:
+                    v = 1.0 if (j >= 3 and i == j) else 0.0
+                if v != 0.0:
+                    rows.append([rs])
+                    cols.append([cm])
+                    vals.append([v])
+    return sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(model.ext_count, nf),
+    )
+
+
+def link_geometric_stiffness(model: Model, r_ext: np.ndarray, rotations, t: sp.csr_matrix):
+    """The rigid links' geometric stiffness (dof_count square): the master's reduced moment
+    gains ``a x r_s`` from each slave's force residual ``r_s`` at arm ``a = R_m b``, whose
+    derivative with respect to the master's spin is ``W(r_s) W(a)``."""
+    nf, fi = model.dof_count, model.free_index
+    rows, cols, vals = [], [], []
+    for s_node, m_node, off in zip(
+        model.slave_nodes, model.slave_master, model.slave_offset, strict=True
+    ):
+        mr = fi[6 * m_node + 3 : 6 * m_node + 6]
+        if np.any(mr < 0) or np.any(mr >= nf):
+            continue
+        rs = r_ext[fi[6 * s_node : 6 * s_node + 3]]
+        blk = skew(rs) @ skew(rotations[m_node] @ off)
+        rows.append(np.repeat(mr, 3))
+        cols.append(np.tile(mr, 3))
+        vals.append(blk.ravel())
+    if not rows:
+        return sp.csr_matrix((nf, nf))
+    return sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nf, nf)
+    )
+
+
+def project_slaves(model: Model, positions: np.ndarray, rotations: np.ndarray) -> None:
+    """Place every FDR slave exactly on its master's rigid motion (in place)."""
+    for s_node, m_node, off in zip(
+        model.slave_nodes, model.slave_master, model.slave_offset, strict=True
+    ):
+        positions[s_node] = positions[m_node] + rotations[m_node] @ off
+        rotations[s_node] = rotations[m_node]
 
 
 def kinetic_energy(model: Model, velocities: np.ndarray, rotations: np.ndarray) -> float:

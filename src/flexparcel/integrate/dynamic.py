@@ -125,9 +125,11 @@ class GeneralizedAlpha:
         self._h_cap = np.inf
         self._last_rate = 1.0  # Newton contraction rate seen in the last step
         self._contact_info = (0, 0.0, -1, 0.0)
-        self._free = model.free_index >= 0
-        self._free_ids = np.flatnonzero(self._free)
-        self._mfree = model.mass.ravel()[self._free]
+        mask = model.free_index >= 0
+        # DOF number of each assembled (unknown or FDR slave) index, in that index order
+        self._ext_dofs = np.empty(model.ext_count, dtype=np.int64)
+        self._ext_dofs[model.free_index[mask]] = np.flatnonzero(mask)
+        self._mfree = asm.free_vector(model, model.mass)
         tri = model.tri_xloc
         area = 0.5 * np.abs(
             (tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
@@ -174,6 +176,18 @@ class GeneralizedAlpha:
         v1[fixed] = 0.0
         v1[self.model.prescribed_nodes] = self.model.prescribed_velocity
         return a1, qdd, v1
+
+    def _nodal_residual(self, s1, qdd, v1, fint, fc, t1):
+        """M qdd + f_int - f_ext - f_contact per node (n, 6)."""
+        m = self.model
+        inertia = m.mass * qdd
+        if m.rigid_nodes.size:
+            inertia += asm.rigid_inertial_moments(m, s1.rotations, qdd[:, 3:], v1[:, 3:])
+        return inertia + fint - asm.external_forces(m, t1, s1.rotations) - fc
+
+    def _last_residual(self, s1, qdd, v1, fc, t1):
+        fint, _ = asm.internal_forces(self.model, s1.positions, s1.rotations, v1)
+        return self._nodal_residual(s1, qdd, v1, fint, fc, t1)
 
     def _contact(self, s: State, t: float):
         """Contact forces (n, 6) on the nodes and per-point derivative blocks (P, 6, 6)."""
@@ -238,8 +252,8 @@ class GeneralizedAlpha:
         blocks[:, :3, :3] = np.eye(3)
         blocks[:, 3:, 3:] = np.eye(3) - 0.5 * w + c[:, None, None] * (w @ w)
         full = sp.block_diag(list(blocks), format="csr")
-        free = self._free_ids
-        return full[free][:, free]
+        ext = self._ext_dofs
+        return full[ext][:, ext]
 
     def _try_step(self, s0: State, h: float, on_progress=None):
         """One step of size h from s0. Returns (state, qdd, a_alg, iterations) or None."""
@@ -261,6 +275,9 @@ class GeneralizedAlpha:
         theta = dq[:, 3:].copy()
         apply_spins(s1.rotations, theta)
         self._drive_prescribed(s1)
+        if m.slave_nodes.size:
+            asm.project_slaves(m, s1.positions, s1.rotations)
+            theta = relative_rotation_vectors(s1.rotations, s0.rotations)
         tol = self.opt.newton_tol * self.opt.tol_displacement
         prev = None
         tangent_iter = None  # iteration (of this step) whose state the tangent was built at
@@ -274,6 +291,7 @@ class GeneralizedAlpha:
             )
             s1.velocities = v1
             fc, cdq, cdv, self._contact_info = self._contact(s1, t1)
+            t_red = asm.reduction(m, s1.rotations)  # None without FDRs
             t0 = _time.perf_counter()
             if refresh or self._tangent is None or not self.opt.reuse_factorization:
                 tangent_iter = it
@@ -311,6 +329,11 @@ class GeneralizedAlpha:
                     asm.add_rigid_inertia_tangent(m, data, s1.rotations, v1[:, 3:], ca, cv)
                     self._add_contact_tangent(data, cdq, cdv, cv)
                     mat = asm.csr_from_data(m, data)
+                if t_red is not None:
+                    r_link = asm.free_vector(m, self._last_residual(s1, qdd, v1, fc, t1))
+                    mat = t_red.T @ mat @ t_red + asm.link_geometric_stiffness(
+                        m, r_link, s1.rotations, t_red
+                    )
                 try:
                     self.solver.factor(mat.tocsr())
                 except SingularMatrixError:
@@ -319,11 +342,9 @@ class GeneralizedAlpha:
                 self._factor_h = h
                 self.stats.factorizations += 1
                 self.stats.wall_s["factor"] += _time.perf_counter() - t0
-            fext = asm.external_forces(m, t1, s1.rotations)
-            inertia = m.mass * qdd
-            if m.rigid_nodes.size:
-                inertia += asm.rigid_inertial_moments(m, s1.rotations, qdd[:, 3:], v1[:, 3:])
-            r = asm.free_vector(m, inertia + fint - fext - fc)
+            r = asm.free_vector(m, self._nodal_residual(s1, qdd, v1, fint, fc, t1))
+            if t_red is not None:
+                r = t_red.T @ r
             if not np.all(np.isfinite(r)):
                 return None
             t0 = _time.perf_counter()
@@ -332,11 +353,11 @@ class GeneralizedAlpha:
             self.stats.newton_iterations += 1
             if not np.all(np.isfinite(dx)):
                 return None
-            full = np.zeros(6 * m.node_count)
-            full[self._free] = dx
-            full = full.reshape(-1, 6)
+            full = asm.nodal_from_ext(m, dx if t_red is None else t_red @ dx)
             s1.positions += full[:, :3]
             apply_spins(s1.rotations, np.ascontiguousarray(full[:, 3:]))
+            if t_red is not None:
+                asm.project_slaves(m, s1.positions, s1.rotations)
             theta = relative_rotation_vectors(s1.rotations, s0.rotations)
             norm = max(np.abs(full[:, :3]).max(), self.elem_size * np.abs(full[:, 3:]).max())
 

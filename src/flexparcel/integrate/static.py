@@ -36,12 +36,14 @@ class StaticResult:
 
 
 def apply_increment(model: Model, state: State, dq_free: np.ndarray) -> None:
-    """Add a free-DOF increment: translations additively, rotations as spatial spins."""
-    dq = np.zeros(6 * model.node_count)
-    dq[model.free_index >= 0] = dq_free
-    dq = dq.reshape(-1, 6)
+    """Add an increment of the unknowns (dof_count,): translations additively, rotations as
+    spatial spins; FDR slaves then follow their masters exactly."""
+    t = asm.reduction(model, state.rotations)
+    dq = asm.nodal_from_ext(model, dq_free if t is None else t @ dq_free)
     state.positions += dq[:, :3]
     apply_spins(state.rotations, np.ascontiguousarray(dq[:, 3:]))
+    if t is not None:
+        asm.project_slaves(model, state.positions, state.rotations)
 
 
 def _rotation_vectors(rot: np.ndarray) -> np.ndarray:
@@ -117,8 +119,13 @@ def _newton(model, state, lam, time, tol, max_iterations, solver, span, zeros_v)
             np.linalg.norm(asm.free_vector(model, fint)),
             1e-30,
         )
+        mat = asm.csr_from_data(model, data)
+        t = asm.reduction(model, state.rotations)
+        if t is not None:
+            kg = asm.link_geometric_stiffness(model, r, state.rotations, t)
+            mat, r = (t.T @ mat @ t + kg).tocsr(), t.T @ r
         try:
-            solver.factor(asm.csr_from_data(model, data))
+            solver.factor(mat)
         except SingularMatrixError:
             return False, it
         dq = -solver.solve(r)

@@ -107,6 +107,14 @@ class Model:
     cp_schedule: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     """Index into ``contact_schedules`` (switching each pair on and off), shape (P,)."""
     contact_schedules: list = field(default_factory=list)
+    free_count: int = -1
+    """Number of unknowns; ``free_index`` values >= free_count are FDR slave DOFs."""
+    slave_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Nodes rigidly tied (FDR / fixed joint) to a master node, shape (s,)."""
+    slave_master: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Master node of each slave (always a root master), shape (s,)."""
+    slave_offset: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Offset of each slave from its master in the master's body frame [m], shape (s, 3)."""
 
     @property
     def node_count(self) -> int:
@@ -114,7 +122,12 @@ class Model:
 
     @property
     def dof_count(self) -> int:
-        """Number of unknowns (free DOFs)."""
+        """Number of unknowns (free DOFs of nodes that are not FDR slaves)."""
+        return int(self.free_count) if self.free_count >= 0 else int(self.diag_slots.shape[0])
+
+    @property
+    def ext_count(self) -> int:
+        """Unknowns plus the DOFs of FDR slave nodes (the size of assembled matrices)."""
         return int(self.diag_slots.shape[0])
 
     @property
@@ -191,6 +204,8 @@ class ModelBuilder:
     _rigid: list = field(default_factory=list, repr=False)
     _planes: list = field(default_factory=list, repr=False)
     _contacts: list = field(default_factory=list, repr=False)
+    _slaves: dict = field(default_factory=dict, repr=False)
+    _refs: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
     def __post_init__(self) -> None:
@@ -390,6 +405,35 @@ class ModelBuilder:
             radii = np.full(len(nodes), r)
         self._contacts.append((nodes, offsets, radii, int(plane), law, sched))
 
+    def add_fdr(self, node_ids, reference: int | None = None) -> int:
+        """Tie ``node_ids`` rigidly to a reference node (RecurDyn FDR, Nastran RBE2): they follow
+        its translation and rotation. ``reference``: an existing node (e.g. a rigid body's node,
+        which makes a fixed joint between the FDR and the body) or None to create a massless
+        reference node at the centroid of the set. Returns the reference node id; load it with
+        :meth:`add_force` / :meth:`add_moment`, hold it with :meth:`fix`."""
+        ids = self._check_ids("add_fdr", node_ids)
+        if reference is None:
+            pts = np.concatenate(self._points)[ids]
+            reference = self._node_count
+            self._points.append(pts.mean(axis=0)[None, :])
+            self._refs.append(reference)
+            self._node_count += 1
+        else:
+            reference = int(self._check_ids("add_fdr", [reference])[0])
+        for node in ids.tolist():
+            if node == reference:
+                raise ValueError(f"add_fdr: node {node} cannot be tied to itself")
+            if node in self._slaves:
+                raise ValueError(
+                    f"add_fdr: node {node} is already tied to node {self._slaves[node]}"
+                )
+            self._slaves[node] = reference
+        return reference
+
+    def add_fixed_joint(self, body_a: int, body_b: int) -> None:
+        """Weld two rigid bodies (or any two nodes): ``body_b`` follows ``body_a``."""
+        self.add_fdr([body_b], reference=body_a)
+
     # ------------------------------------------------------------------ supports
     def _check_ids(self, what: str, node_ids) -> np.ndarray:
         ids = np.atleast_1d(np.asarray(node_ids))
@@ -495,7 +539,8 @@ class ModelBuilder:
         mass[:, 1] = mass[:, 2] = mass[:, 0]
         mass[:, 4] = mass[:, 5] = mass[:, 3]
         triangles = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
-        orphan = np.setdiff1d(np.arange(n), np.union1d(np.unique(triangles), rigid_nodes))
+        attached = np.union1d(np.unique(triangles), rigid_nodes)
+        orphan = np.setdiff1d(np.arange(n), np.union1d(attached, self._refs))
         if orphan.size:
             raise ValueError(f"finalize: node {int(orphan[0])} belongs to no element")
         fixed = np.zeros((n, 6), dtype=bool)
@@ -528,13 +573,21 @@ class ModelBuilder:
                 lm.append(ld.is_moment)
                 lf.append(ld.follower)
                 ls.append(si)
+        slave_nodes, slave_master, slave_offset = self._resolve_slaves(pos0, fixed)
+        is_slave = np.zeros((n, 6), dtype=bool)
+        is_slave[slave_nodes] = True
         free_index = np.full(6 * n, -1, dtype=np.int64)
-        free = np.flatnonzero(~fixed.ravel())
+        free = np.flatnonzero(~fixed.ravel() & ~is_slave.ravel())
         if free.size == 0:
             raise ValueError("finalize: every DOF is fixed; nothing to solve")
         free_index[free] = np.arange(free.size)
+        # FDR slave DOFs are numbered after the unknowns: matrices are assembled over both and
+        # reduced onto the unknowns with the rigid-link map (see integrate.assembly.reduction)
+        slave_dofs = np.flatnonzero(is_slave.ravel())
+        free_index[slave_dofs] = free.size + np.arange(slave_dofs.size)
+        ext = free.size + slave_dofs.size
         indptr, indices, emap, load_emap, diag, rigid_slots, node_slots = _sparsity(
-            triangles, free_index, free.size, np.asarray(ln, dtype=np.int64), rigid_nodes, n
+            triangles, free_index, ext, np.asarray(ln, dtype=np.int64), rigid_nodes, n
         )
         laws, law_index, csched = [], [], []
         cpn, cpo, cpr, cpp, cpl, cps = [], [], [], [], [], []
@@ -594,7 +647,32 @@ class ModelBuilder:
             cp_law=np.concatenate(cpl) if cpl else np.zeros(0, np.int64),
             cp_schedule=np.concatenate(cps) if cps else np.zeros(0, np.int64),
             contact_schedules=csched,
+            free_count=int(free.size),
+            slave_nodes=slave_nodes,
+            slave_master=slave_master,
+            slave_offset=slave_offset,
         )
+
+    def _resolve_slaves(self, pos0: np.ndarray, fixed: np.ndarray):
+        """Slave -> root master (chains of ties resolved), offsets in the master frame."""
+        nodes, masters = [], []
+        for node in sorted(self._slaves):
+            root, seen = self._slaves[node], {node}
+            while root in self._slaves:
+                if root in seen:
+                    raise ValueError(f"add_fdr: ties of node {node} form a loop")
+                seen.add(root)
+                root = self._slaves[root]
+            if np.any(fixed[node]):
+                raise ValueError(
+                    f"node {node} is tied to node {root} by an FDR and cannot also be fixed: "
+                    "fix the reference node instead"
+                )
+            nodes.append(node)
+            masters.append(root)
+        nodes = np.asarray(nodes, dtype=np.int64)
+        masters = np.asarray(masters, dtype=np.int64)
+        return nodes, masters, (pos0[nodes] - pos0[masters]).reshape(-1, 3)
 
 
 def _check_orientation(cells: list[np.ndarray]) -> None:
@@ -622,7 +700,7 @@ def _check_orientation(cells: list[np.ndarray]) -> None:
 
 def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes, node_count):
     """CSR pattern over the free DOFs and the data-slot maps; slot ``nnz`` is a trash slot.
-    ``block_nodes`` (rigid bodies) get their full 6x6 diagonal block."""
+    Every node gets its 6x6 block; ``block_nodes`` (rigid bodies) also get rotation slots."""
     m = len(triangles)
     dofs = (6 * triangles[:, :, None] + np.arange(6)).reshape(m, 18)
     fd = free_index[dofs]  # (m, 18)
@@ -630,8 +708,9 @@ def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes, node_count)
     cols = np.tile(fd, (1, 18)).reshape(m, 18, 18)
     ok = (rows >= 0) & (cols >= 0)
     keys = rows[ok] * nfree + cols[ok]
-    # every free DOF gets a diagonal entry; rigid bodies their 6x6 block
-    bd = free_index[(6 * block_nodes[:, None] + np.arange(6)).reshape(-1, 6)]
+    # every node gets its own 6x6 block: rigid-body inertia, follower loads on element-free
+    # reference nodes, contact and rigid links all couple a node's DOFs among themselves
+    bd = free_index[(6 * np.arange(node_count)[:, None] + np.arange(6)).reshape(-1, 6)]
     br = np.repeat(bd, 6, axis=1).ravel()
     bc = np.tile(bd, (1, 6)).ravel()
     bok = (br >= 0) & (bc >= 0)
