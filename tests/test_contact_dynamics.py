@@ -161,3 +161,40 @@ def test_contact_point_tangents_match_finite_differences():
         fdv = (run(pos, rot, vp)[0] - run(pos, rot, vm)[0]) / (2 * eps)
         assert np.abs(fdv - dv[:, j]).max() <= 1e-5 * np.abs(dv).max()
     del rng
+
+
+def test_box_pushed_by_belt_along_a_fence():
+    # A belt at speed v_b running at theta = 45 deg into a fixed fence drags a box along it at
+    # u = v_b (cos(theta) - mu_f sin(theta)) whatever the belt friction (steady state: the belt
+    # friction's components along and into the fence balance the fence's friction mu_f N and
+    # its normal force N). The approach is exponential with a time constant ~|v_b - v|/(mu g)
+    # ~ 0.25 s: within 2 % after 1.5 s.
+    vb, th, mu_f = 1.6, np.radians(45.0), 0.3
+    belt_law = ContactLaw(
+        stiffness=1e5,
+        damping=20.0,
+        damping_option="indentation",
+        indentation_exponent=0.0,
+        mu_static=0.5,
+        mu_dynamic=0.5,
+    )
+    fence_law = ContactLaw(
+        stiffness=1e5,
+        damping=20.0,
+        damping_option="indentation",
+        indentation_exponent=0.0,
+        mu_static=mu_f,
+        mu_dynamic=mu_f,
+    )
+    b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
+    node = b.add_rigid_body(
+        RoundedBox(0.1, 0.08, 0.02, 0.002, mass=0.1), (0.0, -0.02, 0.01 - 0.1 * G / 4e5)
+    )
+    belt = b.add_plane((0, 0, 0), (0, 0, 1), (vb * np.cos(th), -vb * np.sin(th), 0.0))
+    fence = b.add_plane((0.0, -0.06, 0.0), (0.0, 1.0, 0.0))
+    b.add_contact(node, belt, belt_law)
+    b.add_contact(node, fence, fence_law)
+    r = fp.simulate(b.finalize(), 1.5, dt_out=0.01)
+    u = r.velocities[-10:, node, 0]
+    assert np.all(np.abs(u / (vb * (np.cos(th) - mu_f * np.sin(th))) - 1.0) < 2e-2)
+    assert np.abs(r.velocities[-10:, node, 1]).max() < 1e-2  # pressed against the fence
