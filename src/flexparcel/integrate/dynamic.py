@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from flexparcel.contact.bodies import box_contact_forces
 from flexparcel.contact.planes import plane_contact_forces
 from flexparcel.elements.rotations import (
     apply_spins,
@@ -125,6 +126,7 @@ class GeneralizedAlpha:
         self._h_cap = np.inf
         self._last_rate = 1.0  # Newton contraction rate seen in the last step
         self._contact_info = (0, 0.0, -1, 0.0)
+        self._box_blocks = None
         mask = model.free_index >= 0
         # DOF number of each assembled (unknown or FDR slave) index, in that index order
         self._ext_dofs = np.empty(model.ext_count, dtype=np.int64)
@@ -190,34 +192,53 @@ class GeneralizedAlpha:
         return self._nodal_residual(s1, qdd, v1, fint, fc, t1)
 
     def _contact(self, s: State, t: float):
-        """Contact forces (n, 6) on the nodes and per-point derivative blocks (P, 6, 6)."""
+        """Contact forces (n, 6) on the nodes, per-point derivative blocks (P, 6, 6) of plane
+        contacts; the (node, box) pairs' derivative blocks are kept for the tangent."""
         m = self.model
         fc = np.zeros((m.node_count, 6))
         npts = m.cp_node.size
         dq = np.zeros((npts, 6, 6))
         dv = np.zeros((npts, 6, 6))
-        if npts == 0:
-            return fc, dq, dv, (0, 0.0, -1, 0.0)
-        act = np.array([sch(t) for sch in m.contact_schedules])[m.cp_schedule]
-        info = plane_contact_forces(
-            m.cp_node,
-            m.cp_offset,
-            m.cp_radius,
-            m.cp_plane,
-            m.cp_law,
-            act,
-            m.plane_point,
-            m.plane_normal,
-            m.plane_velocity,
-            m.contact_laws,
-            s.positions,
-            s.rotations,
-            s.velocities,
-            fc,
-            dq,
-            dv,
-        )
+        info = (0, 0.0, -1, 0.0)
+        factors = np.array([sch(t) for sch in m.contact_schedules])
+        if npts:
+            info = plane_contact_forces(
+                m.cp_node, m.cp_offset, m.cp_radius, m.cp_plane, m.cp_law,
+                factors[m.cp_schedule], m.plane_point, m.plane_normal, m.plane_velocity,
+                m.contact_laws, s.positions, s.rotations, s.velocities, fc, dq, dv,
+            )  # fmt: skip
+        self._box_blocks = None
+        nq = m.bp_node.size
+        if nq:
+            bk = np.zeros((nq, 9, 9))
+            bc = np.zeros((nq, 9, 9))
+            dofs = np.zeros((nq, 9), dtype=np.int64)
+            binfo = box_contact_forces(
+                m.bp_node, m.bp_box, m.bp_radius, m.bp_law, factors[m.bp_schedule],
+                m.box_half_by_node, m.box_radius_by_node, m.contact_laws, s.positions,
+                s.rotations, s.velocities, fc, bk, bc, dofs,
+            )  # fmt: skip
+            self._box_blocks = (bk, bc, dofs)
+            deeper = binfo[1] > info[1]
+            info = (info[0] + binfo[0], max(info[1], binfo[1]),
+                    binfo[2] if deeper else info[2], max(info[3], binfo[3]))  # fmt: skip
         return fc, dq, dv, info
+
+    def _box_contact_matrix(self, cv: float):
+        """-(dF/dq + cv dF/dv) of the (node, box) pairs in contact, (ext x ext) sparse."""
+        if self._box_blocks is None:
+            return None
+        bk, bc, dofs = self._box_blocks
+        live = dofs[:, 0] >= 0
+        if not np.any(live):
+            return None
+        blocks = -(bk[live] + cv * bc[live])
+        idx = self.model.free_index[dofs[live]]  # (L, 9) ext numbers, -1 where held
+        rows = np.repeat(idx, 9, axis=1).reshape(-1, 9, 9)
+        cols = np.tile(idx, (1, 9)).reshape(-1, 9, 9)
+        ok = (rows >= 0) & (cols >= 0)
+        n = self.model.ext_count
+        return sp.csr_matrix((blocks[ok], (rows[ok], cols[ok])), shape=(n, n))
 
     def _add_contact_tangent(self, data, cdq, cdv, cv):
         """Residual r = ... - f_contact: add -(dF/dq + cv dF/dv) into each node's block."""
@@ -321,6 +342,9 @@ class GeneralizedAlpha:
                         asm.csr_from_data(m, data)
                         + (cv * asm.csr_from_data(m, dc) + sp.diags(ca * self._mfree)) @ tmap
                     )
+                    box_mat = self._box_contact_matrix(cv)
+                    if box_mat is not None:
+                        mat = mat + box_mat
                 else:
                     # the material tangent is approximate anyway; without the O(|Theta|)
                     # increment map it stays symmetric and is assembled in place
@@ -329,6 +353,9 @@ class GeneralizedAlpha:
                     asm.add_rigid_inertia_tangent(m, data, s1.rotations, v1[:, 3:], ca, cv)
                     self._add_contact_tangent(data, cdq, cdv, cv)
                     mat = asm.csr_from_data(m, data)
+                    box_mat = self._box_contact_matrix(cv)
+                    if box_mat is not None:
+                        mat = mat + box_mat
                 if t_red is not None:
                     r_link = asm.free_vector(m, self._last_residual(s1, qdd, v1, fc, t1))
                     mat = t_red.T @ mat @ t_red + asm.link_geometric_stiffness(

@@ -107,6 +107,16 @@ class Model:
     cp_schedule: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     """Index into ``contact_schedules`` (switching each pair on and off), shape (P,)."""
     contact_schedules: list = field(default_factory=list)
+    bp_node: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Node of each (node, rigid box) contact pair, shape (Q,)."""
+    bp_box: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """Rigid-body node of each pair, shape (Q,)."""
+    bp_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bp_law: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    bp_schedule: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    box_half_by_node: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Inner half sizes of the rounded box carried by each node (zero if none) [m], (n, 3)."""
+    box_radius_by_node: np.ndarray = field(default_factory=lambda: np.zeros(0))
     free_count: int = -1
     """Number of unknowns; ``free_index`` values >= free_count are FDR slave DOFs."""
     slave_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -205,6 +215,7 @@ class ModelBuilder:
     _planes: list = field(default_factory=list, repr=False)
     _contacts: list = field(default_factory=list, repr=False)
     _slaves: dict = field(default_factory=dict, repr=False)
+    _body_contacts: list = field(default_factory=list, repr=False)
     _refs: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
@@ -434,6 +445,28 @@ class ModelBuilder:
         """Weld two rigid bodies (or any two nodes): ``body_b`` follows ``body_a``."""
         self.add_fdr([body_b], reference=body_a)
 
+    def add_body_contact(
+        self, node_ids, body: int, law, *, radius: float = 0.0, schedule: Schedule | None = None
+    ) -> None:
+        """Contact between shell nodes (contact radius [m], e.g. half the shell thickness) and
+        the rounded box of rigid body ``body`` (its node id), e.g. packaging on its content."""
+        from flexparcel.contact.law import ContactLaw
+
+        if not isinstance(law, ContactLaw):
+            raise TypeError("add_body_contact: law must be a ContactLaw")
+        rigid = {node for node, _, _ in self._rigid}
+        if not (isinstance(body, int | np.integer) and int(body) in rigid):
+            raise ValueError(
+                f"add_body_contact: body {body!r} is not a rigid body's node; rigid bodies: "
+                f"{sorted(rigid)}"
+            )
+        nodes = self._check_ids("add_body_contact", node_ids)
+        r = float(radius)
+        if not (np.isfinite(r) and r >= 0.0):
+            raise ValueError(f"add_body_contact: radius must be >= 0 m, got {radius!r}")
+        sched = schedule if schedule is not None else Schedule.constant()
+        self._body_contacts.append((nodes, int(body), r, law, sched))
+
     # ------------------------------------------------------------------ supports
     def _check_ids(self, what: str, node_ids) -> np.ndarray:
         ids = np.atleast_1d(np.asarray(node_ids))
@@ -591,6 +624,21 @@ class ModelBuilder:
         )
         laws, law_index, csched = [], [], []
         cpn, cpo, cpr, cpp, cpl, cps = [], [], [], [], [], []
+        bpn, bpb, bpr, bpl, bps = [], [], [], [], []
+        for nodes, body, r, law, sched in self._body_contacts:
+            for lst, item in ((laws, law), (csched, sched)):
+                if item not in lst:
+                    lst.append(item)
+            bpn.append(nodes)
+            bpb.append(np.full(len(nodes), body))
+            bpr.append(np.full(len(nodes), r))
+            bpl.append(np.full(len(nodes), laws.index(law)))
+            bps.append(np.full(len(nodes), csched.index(sched)))
+        box_half = np.zeros((n, 3))
+        box_rad = np.zeros(n)
+        for node, shape, _ in self._rigid:
+            box_half[node] = shape.half_inner
+            box_rad[node] = shape.edge_radius
         for nodes, offsets, radii, plane, law, sched in self._contacts:
             if law not in laws:
                 laws.append(law)
@@ -648,6 +696,13 @@ class ModelBuilder:
             cp_schedule=np.concatenate(cps) if cps else np.zeros(0, np.int64),
             contact_schedules=csched,
             free_count=int(free.size),
+            bp_node=np.concatenate(bpn) if bpn else np.zeros(0, np.int64),
+            bp_box=np.concatenate(bpb) if bpb else np.zeros(0, np.int64),
+            bp_radius=np.concatenate(bpr) if bpr else np.zeros(0),
+            bp_law=np.concatenate(bpl) if bpl else np.zeros(0, np.int64),
+            bp_schedule=np.concatenate(bps) if bps else np.zeros(0, np.int64),
+            box_half_by_node=box_half,
+            box_radius_by_node=box_rad,
             slave_nodes=slave_nodes,
             slave_master=slave_master,
             slave_offset=slave_offset,
