@@ -306,7 +306,7 @@ def test_point_triangle_derivatives_fd(z):
         dist, _, bary, normal, region, ddist, dn, dbary = out
         assert region == code
 
-        def f(x):
+        def f(x, code=code):
             d_, _, b_, n_, r_ = geo.point_triangle(x[:3], x[3:6], x[6:9], x[9:])
             assert r_ == code  # the stencil stays in the region
             return np.r_[d_, n_, b_]

@@ -659,7 +659,8 @@ def segment_plane(p0, p1, plane_point, normal, radius):
     of the solid side). A segment's height is linear in its parameter, so the deepest point is an
     end point: ``s = radius - min(h_0, h_1)`` at ``t = 0`` (``h_0 < h_1``), ``t = 1``
     (``h_1 < h_0``) or ``t = 0.5`` when the segment is parallel to the plane (``|h_0 - h_1| <=
-    1e-12 |p1 - p0|``: the whole segment is equally deep; line contact). The contact point is ``p0 + t (p1 - p0)``.
+    1e-12 |p1 - p0|``: the whole segment is equally deep; line contact). The contact point is
+    ``p0 + t (p1 - p0)``.
     Derivatives: ``ds/dp0 = -(1 - t) normal``, ``ds/dp1 = -t normal``.
 
     Args:
