@@ -313,57 +313,95 @@ def _closest_on_segment(p, a, b):
 
 
 @nb.njit(cache=True)
-def _tri_closest(p, a, b, c):
-    """Closest point on a non-degenerate triangle: (region, bary (3,)).
+def _tri_closest(p, a, b, c, bary):
+    """Closest point on a non-degenerate triangle: fills ``bary`` (3,), returns the region.
 
     Voronoi-region walk of Ericson, *Real-Time Collision Detection*, Morgan Kaufmann 2005,
-    section 5.1.5 (ClosestPtPointTriangle)."""
-    bary = np.zeros(3)
-    ab = b - a
-    ac = c - a
-    ap = p - a
-    d1 = _dot(ab, ap)
-    d2 = _dot(ac, ap)
+    section 5.1.5 (ClosestPtPointTriangle), on scalars (no temporaries)."""
+    abx = b[0] - a[0]
+    aby = b[1] - a[1]
+    abz = b[2] - a[2]
+    acx = c[0] - a[0]
+    acy = c[1] - a[1]
+    acz = c[2] - a[2]
+    bary[0] = 0.0
+    bary[1] = 0.0
+    bary[2] = 0.0
+    d1 = abx * (p[0] - a[0]) + aby * (p[1] - a[1]) + abz * (p[2] - a[2])
+    d2 = acx * (p[0] - a[0]) + acy * (p[1] - a[1]) + acz * (p[2] - a[2])
     if d1 <= 0.0 and d2 <= 0.0:
         bary[0] = 1.0
-        return TRI_VERTEX_A, bary
-    bp = p - b
-    d3 = _dot(ab, bp)
-    d4 = _dot(ac, bp)
+        return TRI_VERTEX_A
+    d3 = abx * (p[0] - b[0]) + aby * (p[1] - b[1]) + abz * (p[2] - b[2])
+    d4 = acx * (p[0] - b[0]) + acy * (p[1] - b[1]) + acz * (p[2] - b[2])
     if d3 >= 0.0 and d4 <= d3:
         bary[1] = 1.0
-        return TRI_VERTEX_B, bary
+        return TRI_VERTEX_B
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         v = d1 / (d1 - d3)
         bary[0] = 1.0 - v
         bary[1] = v
-        return TRI_EDGE_AB, bary
-    cp = p - c
-    d5 = _dot(ab, cp)
-    d6 = _dot(ac, cp)
+        return TRI_EDGE_AB
+    d5 = abx * (p[0] - c[0]) + aby * (p[1] - c[1]) + abz * (p[2] - c[2])
+    d6 = acx * (p[0] - c[0]) + acy * (p[1] - c[1]) + acz * (p[2] - c[2])
     if d6 >= 0.0 and d5 <= d6:
         bary[2] = 1.0
-        return TRI_VERTEX_C, bary
+        return TRI_VERTEX_C
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         w = d2 / (d2 - d6)
         bary[0] = 1.0 - w
         bary[2] = w
-        return TRI_EDGE_CA, bary
+        return TRI_EDGE_CA
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
         w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
         bary[1] = 1.0 - w
         bary[2] = w
-        return TRI_EDGE_BC, bary
+        return TRI_EDGE_BC
     den = 1.0 / (va + vb + vc)
     v = vb * den
     w = vc * den
     bary[0] = 1.0 - v - w
     bary[1] = v
     bary[2] = w
-    return TRI_FACE, bary
+    return TRI_FACE
+
+
+@nb.njit(cache=True)
+def _point_degenerate_triangle(p, a, b, c):
+    """point_triangle for a zero-area triangle: the closest of its three edges."""
+    # Degenerate triangle: best of its three edges.
+    best = np.inf
+    bary = np.zeros(3)
+    closest = a.copy()
+    region = TRI_EDGE_AB
+    for k in range(3):
+        if k == 0:
+            i, j, code = 0, 1, TRI_EDGE_AB
+            x0, x1 = a, b
+        elif k == 1:
+            i, j, code = 1, 2, TRI_EDGE_BC
+            x0, x1 = b, c
+        else:
+            i, j, code = 2, 0, TRI_EDGE_CA
+            x0, x1 = c, a
+        t, x = _closest_on_segment(p, x0, x1)
+        d2 = _dot(p - x, p - x)
+        if d2 < best:
+            best = d2
+            for v in range(3):
+                bary[v] = 0.0
+            bary[i] = 1.0 - t
+            bary[j] += t
+            closest = x
+            region = code
+    dist = math.sqrt(best)
+    normal = np.zeros(3)
+    if dist > 0.0:
+        normal = (p - closest) / dist
+    return dist, closest, bary, normal, region
 
 
 @nb.njit(cache=True)
@@ -393,51 +431,42 @@ def point_triangle(p, a, b, c):
         (dist_signed [m], closest (3,) [m], bary (3,) barycentric coordinates of ``closest``
         (sum 1, all >= 0), normal (3,) unit, region code :data:`TRI_FACE` ... :data:`TRI_EDGE_CA`).
     """
-    e = _cross(b - a, c - a)
-    ee = math.sqrt(_dot(e, e))
+    abx = b[0] - a[0]
+    aby = b[1] - a[1]
+    abz = b[2] - a[2]
+    acx = c[0] - a[0]
+    acy = c[1] - a[1]
+    acz = c[2] - a[2]
+    ex = aby * acz - abz * acy
+    ey = abz * acx - abx * acz
+    ez = abx * acy - aby * acx
+    ee = math.sqrt(ex * ex + ey * ey + ez * ez)
     if ee == 0.0:
-        # Degenerate triangle: best of its three edges.
-        best = np.inf
-        bary = np.zeros(3)
-        closest = a.copy()
-        region = TRI_EDGE_AB
-        for k in range(3):
-            if k == 0:
-                i, j, code = 0, 1, TRI_EDGE_AB
-                x0, x1 = a, b
-            elif k == 1:
-                i, j, code = 1, 2, TRI_EDGE_BC
-                x0, x1 = b, c
-            else:
-                i, j, code = 2, 0, TRI_EDGE_CA
-                x0, x1 = c, a
-            t, x = _closest_on_segment(p, x0, x1)
-            d2 = _dot(p - x, p - x)
-            if d2 < best:
-                best = d2
-                for v in range(3):
-                    bary[v] = 0.0
-                bary[i] = 1.0 - t
-                bary[j] += t
-                closest = x
-                region = code
-        dist = math.sqrt(best)
-        normal = np.zeros(3)
-        if dist > 0.0:
-            normal = (p - closest) / dist
-        return dist, closest, bary, normal, region
-    n_t = e / ee
-    region, bary = _tri_closest(p, a, b, c)
-    closest = bary[0] * a + bary[1] * b + bary[2] * c
+        return _point_degenerate_triangle(p, a, b, c)
+    bary = np.empty(3)
+    region = _tri_closest(p, a, b, c, bary)
+    closest = np.empty(3)
+    normal = np.empty(3)
+    normal[0] = ex / ee
+    normal[1] = ey / ee
+    normal[2] = ez / ee
+    d2 = 0.0
+    for k in range(3):
+        closest[k] = bary[0] * a[k] + bary[1] * b[k] + bary[2] * c[k]
+        d2 += (p[k] - closest[k]) ** 2
     if region == TRI_FACE:
-        return _dot(n_t, p - closest), closest, bary, n_t, region
-    r = p - closest
-    d = math.sqrt(_dot(r, r))
-    sg = 1.0 if _dot(n_t, p - a) >= 0.0 else -1.0
+        dist = (
+            normal[0] * (p[0] - closest[0])
+            + normal[1] * (p[1] - closest[1])
+            + normal[2] * (p[2] - closest[2])
+        )
+        return dist, closest, bary, normal, region
+    h = normal[0] * (p[0] - a[0]) + normal[1] * (p[1] - a[1]) + normal[2] * (p[2] - a[2])
+    sg = 1.0 if h >= 0.0 else -1.0
+    d = math.sqrt(d2)
     if d > 0.0:
-        normal = (sg / d) * r
-    else:
-        normal = n_t.copy()
+        for k in range(3):
+            normal[k] = sg * (p[k] - closest[k]) / d
     return sg * d, closest, bary, normal, region
 
 
