@@ -39,12 +39,14 @@ Element technology (all isoparametric, 3 translational DOFs per node, DOFs node-
   ``J0`` scaled by ``det J0 / det J``, so that ``int grad P dV = 0`` exactly and the element passes
   the patch test on distorted meshes. Why not B-bar / selective reduced integration: those cure
   only *volumetric* locking (nu -> 1/2); the dominant defect of the trilinear hex in bending is
-  parasitic shear (shear locking: a one-element-thick cantilever is ~5x too stiff at L/h = 10),
-  which the incompatible modes remove: QM6 represents pure bending of a rectangular element
-  exactly, and it is equivalent to the EAS-9 enhanced-strain element (Simo & Rifai 1990, IJNME
-  29:1595), which also relieves volumetric locking in bending. Full 2x2x2 Gauss: no hourglass
-  modes. Limitation: on strongly distorted (trapezoidal) meshes the bending accuracy degrades
-  (as for every 8-node hex), and for nu -> 0.5 in non-bending states it is not fully locking-free.
+  parasitic shear (shear locking: the 10x1x1-element cantilever of the tests deflects 36 % too
+  little), which the incompatible modes remove: QM6 represents pure bending of a rectangular
+  element exactly (cantilever error -0.35 % at nu = 0), and it is equivalent to the EAS-9
+  enhanced-strain element (Simo & Rifai 1990, IJNME 29:1595), which also relieves volumetric
+  locking in bending (10x1x1 cantilever at nu = 0.49: -8 %, of which several % are the clamp's
+  Poisson restraint; tet4 on a 6x finer mesh: -90 %). Full 2x2x2 Gauss: no hourglass modes.
+  Limitations: on strongly distorted (trapezoidal) meshes the bending accuracy degrades (as for
+  every 8-node hex), and for nu -> 0.5 it is not fully locking-free.
 * wedge6: linear triangle x linear line, 3-point triangle rule (degree 2) x 2-point Gauss. No
   enhancement: in bending it is as stiff as a full-integration hex/tet (use hex8 for bending).
 * pyr5: the rational Bedrosian basis (Bedrosian 1992, IJNME 35:95; Bergot, Cohen & Durufle 2010)
@@ -367,12 +369,12 @@ def _isotropic_stiffness(g: np.ndarray, wdet: np.ndarray, lam: float, mu: float)
 
     Block (a, b): ``K_ab,ij = sum_q w det J [lam g_ai g_bj + mu g_aj g_bi + mu d_ij g_a.g_b]``,
     the Hessian of ``lam/2 (tr eps)^2 + mu eps:eps``."""
-    m, _, k, _ = g.shape
-    gw = g * wdet[:, :, None, None]
-    kk = lam * np.einsum("mqai,mqbj->maibj", gw, g)
-    kk += mu * np.einsum("mqaj,mqbi->maibj", gw, g)
-    dot = np.einsum("mqac,mqbc->mab", gw, g)
-    kk += mu * np.einsum("mab,ij->maibj", dot, np.eye(3))
+    m, q, k, _ = g.shape
+    gf = g.reshape(m, q, 3 * k)
+    a = (np.swapaxes(gf * wdet[:, :, None], 1, 2) @ gf).reshape(m, k, 3, k, 3)  # sum gw_ai g_bj
+    kk = lam * a + mu * a.transpose(0, 1, 4, 3, 2)  # + mu sum gw_aj g_bi
+    dot = np.einsum("maibi->mab", a)  # sum gw_a . g_b
+    kk += mu * dot[:, :, None, :, None] * np.eye(3)[None, None, :, None, :]
     return kk.reshape(m, 3 * k, 3 * k)
 
 
@@ -489,27 +491,105 @@ def _cofactor(a):
 
 
 @nb.njit(cache=True)
+def _sym_eig3(c):
+    """Eigenvalues (3,) in descending order and eigenvectors (3, 3) (columns, det +1) of a
+    symmetric 3x3 matrix, by cyclic Jacobi rotations (loops only; any multiplicity)."""
+    a = c.copy()
+    v = np.eye(3)
+    scale = 0.0
+    for i in range(3):
+        for j in range(3):
+            scale += a[i, j] * a[i, j]
+    for _ in range(50):
+        off = a[0, 1] * a[0, 1] + a[0, 2] * a[0, 2] + a[1, 2] * a[1, 2]
+        if off <= 1e-32 * scale:
+            break
+        for pair in range(3):
+            p = 0 if pair < 2 else 1
+            q = 1 if pair == 0 else 2
+            if a[p, q] == 0.0:
+                continue
+            theta = 0.5 * (a[q, q] - a[p, p]) / a[p, q]
+            t = (1.0 if theta >= 0.0 else -1.0) / (abs(theta) + math.sqrt(theta * theta + 1.0))
+            cs = 1.0 / math.sqrt(t * t + 1.0)
+            sn = t * cs
+            for k in range(3):  # a <- a G (columns p, q)
+                akp, akq = a[k, p], a[k, q]
+                a[k, p] = cs * akp - sn * akq
+                a[k, q] = sn * akp + cs * akq
+            for k in range(3):  # a <- G^T a (rows p, q)
+                apk, aqk = a[p, k], a[q, k]
+                a[p, k] = cs * apk - sn * aqk
+                a[q, k] = sn * apk + cs * aqk
+            for k in range(3):
+                vkp, vkq = v[k, p], v[k, q]
+                v[k, p] = cs * vkp - sn * vkq
+                v[k, q] = sn * vkp + cs * vkq
+    order = np.empty(3, np.int64)  # descending
+    for j in range(3):
+        order[j] = j
+    for i in range(3):
+        for j in range(2 - i):
+            if a[order[j], order[j]] < a[order[j + 1], order[j + 1]]:
+                order[j], order[j + 1] = order[j + 1], order[j]
+    ws = np.empty(3)
+    vs = np.empty((3, 3))
+    for j in range(3):
+        ws[j] = a[order[j], order[j]]
+        for i in range(3):
+            vs[i, j] = v[i, order[j]]
+    if _det3(vs) < 0.0:
+        for i in range(3):
+            vs[i, 2] = -vs[i, 2]
+    return ws, vs
+
+
+@nb.njit(cache=True)
+def _closest_rotation(f):
+    """Closest proper rotation to any F (3, 3): ``U diag(1, 1, det(U V^T)) V^T`` from the SVD
+    ``F = U S V^T``, built as ``u1 v1^T + u2 v2^T + (u1 x u2) v3^T`` with ``u_i = F v_i / s_i``
+    (needs rank F >= 2; identity otherwise)."""
+    c = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            for k in range(3):
+                c[i, j] += f[k, i] * f[k, j]
+    w, v = _sym_eig3(c)
+    if not w[1] > 1e-28 * max(w[0], 1e-300):
+        return np.eye(3)
+    u = np.zeros((3, 3))
+    for j in range(2):
+        s = math.sqrt(w[j])
+        for i in range(3):
+            for k in range(3):
+                u[i, j] += f[i, k] * v[k, j] / s
+    u[0, 2] = u[1, 0] * u[2, 1] - u[2, 0] * u[1, 1]
+    u[1, 2] = u[2, 0] * u[0, 1] - u[0, 0] * u[2, 1]
+    u[2, 2] = u[0, 0] * u[1, 1] - u[1, 0] * u[0, 1]
+    r = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            for k in range(3):
+                r[i, j] += u[i, k] * v[j, k]
+    return r
+
+
+@nb.njit(cache=True)
 def polar_rotation(f):
     """Rotation factor R (3, 3) of the polar decomposition F = R U of F (3, 3), det F > 0.
 
     Higham's scaled Newton iteration ``X <- (g X + X^-T / g) / 2`` with the Frobenius-norm
     scaling ``g = (|X^-1| / |X|)^(1/2)`` (Higham 1986); quadratic convergence, stopped one step
     after the update falls below 1e-8 (final orthogonality error ~1e-16). For det F <= 0 (an
-    inverted element) it returns the closest proper rotation ``U diag(1, 1, det(U V^T)) V^T`` of
-    the SVD ``F = U S V^T``.
+    inverted element) it returns the closest proper rotation ``U diag(1, 1, -1) V^T`` of the SVD
+    ``F = U S V^T`` (Jacobi eigen-decomposition of F^T F); NaN for a non-finite F.
     """
     x = f.copy()
     det = _det3(x)
     if not np.isfinite(det):
         return np.full((3, 3), np.nan)
     if not det > 0.0:
-        u, _, vt = np.linalg.svd(x)
-        r = u @ vt
-        if _det3(r) < 0.0:
-            for i in range(3):
-                u[i, 2] = -u[i, 2]
-            r = u @ vt
-        return r
+        return _closest_rotation(x)
     last = False
     for _ in range(100):
         cof = _cofactor(x)
@@ -601,7 +681,8 @@ def _element_force(e, cells, kl, xref, grad, beta, pos, vel, fe, energy, vol_rat
 def solid_forces(cells, kl, xref, grad, beta, pos, vel, fe, energy, vol_ratio):
     """Co-rotational internal + damping force blocks of m solid elements (parallel over elements).
 
-    Inputs: ``cells`` (m, k) int64 node ids; ``kl`` (m, 3k, 3k) [N/m], ``xref`` (m, k, 3) [m],
+    Inputs: ``cells`` (m, k) C-contiguous int64 node ids (other layouts/dtypes work but compile
+    another specialisation, ~10 s); ``kl`` (m, 3k, 3k) [N/m], ``xref`` (m, k, 3) [m],
     ``grad`` (m, k, 3) [1/m] from ``solid_reference_data``; ``beta`` (m,) Rayleigh coefficients
     [s]; ``pos`` (n, 3) current node positions [m]; ``vel`` (n, 3) node velocities [m/s].
 
