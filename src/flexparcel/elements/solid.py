@@ -664,10 +664,15 @@ def _element_force(e, cells, kl, xref, grad, beta, pos, vel, fe, energy, vol_rat
     for i in range(n):
         acc = 0.0
         acc_u = 0.0
-        for j in range(n):
-            kij = kl[e, i, j]
-            acc += kij * w[j]
-            acc_u += kij * ul[j]
+        if b != 0.0:
+            for j in range(n):
+                kij = kl[e, i, j]
+                acc += kij * w[j]
+                acc_u += kij * ul[j]
+        else:
+            for j in range(n):
+                acc += kl[e, i, j] * ul[j]
+            acc_u = acc
         s[i] = acc
         en += 0.5 * ul[i] * acc_u
     energy[e] = en
