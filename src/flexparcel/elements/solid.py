@@ -10,7 +10,8 @@ Moita 1996, IJNME 39:2619; Felippa & Haugen 2005, CMAME 194:2285):
   F of a tet4). ``R`` is computed by Higham's scaled Newton iteration ``X <- (g X + X^-T / g) / 2``
   (Higham 1986, SIAM J. Sci. Stat. Comput. 7:1160), quadratically convergent, 2-4 iterations for
   small strains, loops only (numba-friendly); elements with ``det F <= 0`` (inverted) fall back to
-  the closest proper rotation from an SVD so that forces stay finite and push back.
+  the closest proper rotation (SVD via a Jacobi eigen-decomposition of F^T F) so that forces stay
+  finite and push back; the kernels report ``det F`` so that the integrator can reject the step.
 * Local deformational displacements (3k,): ``u_l,a = R^T (x_a - x_c) - (X_a - X_c)`` with
   ``x_c, X_c`` the node averages. They are small under arbitrarily large rigid motion.
 * The local response is linear and small-strain: ``E = 1/2 u_l^T K_l u_l`` with ``K_l`` (3k, 3k)
@@ -19,7 +20,7 @@ Moita 1996, IJNME 39:2619; Felippa & Haugen 2005, CMAME 194:2285):
   term from the derivative of ``R``, which is proportional to the moment
   ``sum_a R^T(x_a - x_c) x (K_l u_l)_a``: it vanishes for a rigid motion and for any constant-strain
   state of an isotropic material, e.g. always for tet4, and is of order |strain| * |stress| * V
-  otherwise).
+  otherwise: measured 5e-4 (hex8) to 1.4e-3 (wedge6) of max|f_a| * size at a 10 % deformation).
 * Damping: RecurDyn FFlex "damping ratio" beta [s], stiffness-proportional Rayleigh damping
   ``C = beta K_m`` with ``K_m = R K_l R^T`` (block-diagonal ``R``), the co-rotational *material*
   stiffness at the current configuration. The damping force is ``f_d = C v = beta R K_l R^T v``:
@@ -48,7 +49,8 @@ Element technology (all isoparametric, 3 translational DOFs per node, DOFs node-
   Limitations: on strongly distorted (trapezoidal) meshes the bending accuracy degrades (as for
   every 8-node hex), and for nu -> 0.5 it is not fully locking-free.
 * wedge6: linear triangle x linear line, 3-point triangle rule (degree 2) x 2-point Gauss. No
-  enhancement: in bending it is as stiff as a full-integration hex/tet (use hex8 for bending).
+  enhancement, so stiffer than hex8 in bending (test cantilever, 20x2x2 hexes split into 2 wedges
+  each: -13 % with the triangles across the thickness, -50 % with them in the bending plane).
 * pyr5: the rational Bedrosian basis (Bedrosian 1992, IJNME 35:95; Bergot, Cohen & Durufle 2010)
   ``N_i = 1/4 [(1 + xi_i xi)(1 + eta_i eta) - zeta + xi_i eta_i xi eta zeta / (1 - zeta)]`` for
   the base, ``N_4 = zeta`` at the apex, on the reference pyramid with base ``[-1, 1]^2`` at
@@ -58,7 +60,9 @@ Element technology (all isoparametric, 3 translational DOFs per node, DOFs node-
   ``eta = v (1 - zeta)`` (weight ``(1 - zeta)^2``); in these coordinates ``N`` and
   ``d N / d(xi, eta, zeta)`` are polynomials, so volume, mass and ``int grad N dV`` are exact
   (patch test) and the stiffness of an affine pyramid is exact.
-* tet4: linear, one-point (exact). Constant strain: locks in bending and for nu -> 0.5.
+* tet4: linear, one-point (exact). Constant strain: locks in bending (test cantilever, hexes split
+  into 6 tets: -50 % on 20x2x2, -21 % on 40x4x4) and for nu -> 0.5 (-98 % at nu = 0.499).
+  pyr5 in the same test (6 pyramids per hex around a centre node): -20 % on 20x2x2.
 
 Node orderings are VTK's (so meshio/ParaView output needs no permutation), with reference
 coordinates:
@@ -70,7 +74,8 @@ coordinates:
   ``3-4-5``, node ``a + 3`` above node ``a``: ``(r, s, t) = (0,0,-1) (1,0,-1) (0,1,-1) (0,0,1)
   (1,0,1) (0,1,1)``. This is the ordering of VTK's shape functions (vtkWedge
   InterpolationFunctions) and of gmsh; the vtkWedge class comment that says the normal points
-  *away* from ``3-4-5`` is a known documentation error (Kitware/vtk-examples PR #9).
+  *away* from ``3-4-5`` is a known documentation inconsistency (Kitware/vtk-examples PR #9,
+  which corrected the quadratic wedge docs and the linear-cells demo).
 * pyr5 (VTK_PYRAMID 14): base ``0-1-2-3`` whose right-hand normal points towards the apex ``4``:
   ``(-1,-1,0) (1,-1,0) (1,1,0) (-1,1,0) (0,0,1)``.
 * tet4 (VTK_TETRA 10): ``0-1-2`` whose right-hand normal points towards ``3``, i.e.
