@@ -137,7 +137,7 @@ def test_contact_point_tangents_match_finite_differences():
         f = np.zeros((1, 6))
         dq = np.zeros((1, 6, 6))
         dv = np.zeros((1, 6, 6))
-        n = plane_contact_forces(*args, p, r, v, f, dq, dv)[0]
+        n = plane_contact_forces(*args, p, r, v, f, dq, dv, np.ones(1), 0.01, np.zeros(1))[0]
         return f[0], dq[0], dv[0], n
 
     f0, dq, dv, n = run(pos, rot, vel)

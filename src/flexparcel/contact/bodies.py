@@ -43,6 +43,9 @@ def box_contact_forces(
     out_k,
     out_c,
     out_dofs,
+    mass,
+    v_impact,
+    out_w2,
 ):
     """Forces of all (node, box) candidate pairs.
 
@@ -87,6 +90,8 @@ def box_contact_forces(
         vn = n[0] * vrel[0] + n[1] * vrel[1] + n[2] * vrel[2]
         vt = vrel - vn * n
         fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
+        if abs(vn) > v_impact and mass[node] > 0.0:
+            out_w2[0] = max(out_w2[0], act * dfn_ds / mass[node])
         ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
         f = act * (fn * n + ft)
         m = np.cross(a, f)

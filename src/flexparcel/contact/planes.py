@@ -48,6 +48,9 @@ def plane_contact_forces(
     out_f,
     out_dq,
     out_dv,
+    mass,
+    v_impact,
+    out_w2,
 ):
     """Generalised contact forces of all points.
 
@@ -95,6 +98,8 @@ def plane_contact_forces(
         sdot = -vn
         vt = vc - vn * n
         fn, dfn_ds, dfn_dsd = normal_force_packed(s, sdot, law)
+        if abs(sdot) > v_impact and mass[node] > 0.0:
+            out_w2[0] = max(out_w2[0], act * dfn_ds / mass[node])
         ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
         f = act * (fn * n + ft)
         m = np.cross(a, f)

@@ -36,6 +36,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from flexparcel.contact.bodies import box_contact_forces
+from flexparcel.contact.broadphase import point_triangle_candidates
+from flexparcel.contact.faces import face_contact_forces, face_sides
 from flexparcel.contact.planes import plane_contact_forces
 from flexparcel.elements.rotations import (
     apply_spins,
@@ -70,6 +72,11 @@ class IntegratorOptions:
     """Keep the factorisation across iterations and steps while Newton contracts well
     (modified Newton). Measured on the sheet swing it forces smaller steps and costs more than
     it saves, so the default rebuilds the tangent every iteration."""
+    impact_step_fraction: float = 0.1
+    """While a contact closes or opens faster than ``impact_speed``, steps are limited to this
+    fraction of its oscillation period 2 pi sqrt(m_node / k_contact)."""
+    impact_speed: float = 0.01
+    """Normal contact speed [m/s] above which a contact counts as an impact."""
     tangent: str = "material"
     """"material": B^T K_l B + the SO(3) increment map, cheap (no frame-rotation terms, so
     Newton converges linearly; measured 2 iterations per step on the sheet swing) or
@@ -126,7 +133,10 @@ class GeneralizedAlpha:
         self._h_cap = np.inf
         self._last_rate = 1.0  # Newton contraction rate seen in the last step
         self._contact_info = (0, 0.0, -1, 0.0)
-        self._box_blocks = None
+        self._coupled_blocks = []
+        self._face_cands = []
+        self._impact_w2 = 0.0
+        self._node_mass = np.ascontiguousarray(model.mass[:, 0])
         mask = model.free_index >= 0
         # DOF number of each assembled (unknown or FDR slave) index, in that index order
         self._ext_dofs = np.empty(model.ext_count, dtype=np.int64)
@@ -201,13 +211,15 @@ class GeneralizedAlpha:
         dv = np.zeros((npts, 6, 6))
         info = (0, 0.0, -1, 0.0)
         factors = np.array([sch(t) for sch in m.contact_schedules])
+        w2 = np.zeros(1)  # largest (contact stiffness / node mass) of impacting contacts
         if npts:
             info = plane_contact_forces(
                 m.cp_node, m.cp_offset, m.cp_radius, m.cp_plane, m.cp_law,
                 factors[m.cp_schedule], m.plane_point, m.plane_normal, m.plane_velocity,
                 m.contact_laws, s.positions, s.rotations, s.velocities, fc, dq, dv,
+                self._node_mass, self.opt.impact_speed, w2,
             )  # fmt: skip
-        self._box_blocks = None
+        self._coupled_blocks = []
         nq = m.bp_node.size
         if nq:
             bk = np.zeros((nq, 9, 9))
@@ -216,29 +228,64 @@ class GeneralizedAlpha:
             binfo = box_contact_forces(
                 m.bp_node, m.bp_box, m.bp_radius, m.bp_law, factors[m.bp_schedule],
                 m.box_half_by_node, m.box_radius_by_node, m.contact_laws, s.positions,
-                s.rotations, s.velocities, fc, bk, bc, dofs,
+                s.rotations, s.velocities, fc, bk, bc, dofs, self._node_mass,
+                self.opt.impact_speed, w2,
             )  # fmt: skip
-            self._box_blocks = (bk, bc, dofs)
+            self._coupled_blocks.append((bk, bc, dofs))
             deeper = binfo[1] > info[1]
             info = (info[0] + binfo[0], max(info[1], binfo[1]),
                     binfo[2] if deeper else info[2], max(info[3], binfo[3]))  # fmt: skip
+        for (nodes, tris, thick, law, sched), (pairs, sides) in zip(
+            m.face_sets, self._face_cands, strict=True
+        ):
+            k = pairs.shape[0]
+            fk = np.zeros((k, 12, 12))
+            fcv = np.zeros((k, 12, 12))
+            dofs = np.zeros((k, 12), dtype=np.int64)
+            nc, depth, ratio = face_contact_forces(
+                pairs, sides, nodes, tris, thick, m.contact_laws[law], factors[sched],
+                s.positions, s.velocities, fc, fk, fcv, dofs, self._node_mass,
+                self.opt.impact_speed, w2,
+            )  # fmt: skip
+            self._coupled_blocks.append((fk, fcv, dofs))
+            info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
+        self._impact_w2 = float(w2[0])
         return fc, dq, dv, info
 
     def _box_contact_matrix(self, cv: float):
-        """-(dF/dq + cv dF/dv) of the (node, box) pairs in contact, (ext x ext) sparse."""
-        if self._box_blocks is None:
-            return None
-        bk, bc, dofs = self._box_blocks
-        live = dofs[:, 0] >= 0
-        if not np.any(live):
-            return None
-        blocks = -(bk[live] + cv * bc[live])
-        idx = self.model.free_index[dofs[live]]  # (L, 9) ext numbers, -1 where held
-        rows = np.repeat(idx, 9, axis=1).reshape(-1, 9, 9)
-        cols = np.tile(idx, (1, 9)).reshape(-1, 9, 9)
-        ok = (rows >= 0) & (cols >= 0)
+        """-(dF/dq + cv dF/dv) of the contact pairs that couple several nodes (node-box,
+        node-face), (ext x ext) sparse; None if none is in contact."""
+        mats = []
         n = self.model.ext_count
-        return sp.csr_matrix((blocks[ok], (rows[ok], cols[ok])), shape=(n, n))
+        for bk, bc, dofs in self._coupled_blocks:
+            live = dofs[:, 0] >= 0
+            if not np.any(live):
+                continue
+            w = dofs.shape[1]
+            blocks = -(bk[live] + cv * bc[live])
+            idx = self.model.free_index[dofs[live]]  # ext numbers, -1 where held
+            rows = np.repeat(idx, w, axis=1).reshape(-1, w, w)
+            cols = np.tile(idx, (1, w)).reshape(-1, w, w)
+            ok = (rows >= 0) & (cols >= 0)
+            mats.append(sp.csr_matrix((blocks[ok], (rows[ok], cols[ok])), shape=(n, n)))
+        return sum(mats[1:], mats[0]) if mats else None
+
+    def _face_candidates(self, s0: State, h: float) -> None:
+        """Broad phase once per step, at its start: candidate (node, face) pairs within the
+        contact thickness plus twice the distance any node can travel in the step, and the side
+        of its face each node starts on."""
+        m = self.model
+        self._face_cands = []
+        if not m.face_sets:
+            return
+        vmax = float(np.sqrt((s0.velocities[:, :3] ** 2).sum(axis=1)).max())
+        reach = 2.0 * h * (vmax + 9.81 * h) + 1e-9
+        for nodes, tris, thick, _, _ in m.face_sets:
+            pairs = point_triangle_candidates(
+                s0.positions[nodes], thick, tris, s0.positions, thick + reach, point_node=nodes
+            )
+            sides = face_sides(pairs, nodes, tris, s0.positions)
+            self._face_cands.append((pairs, sides))
 
     def _add_contact_tangent(self, data, cdq, cdv, cv):
         """Residual r = ... - f_contact: add -(dF/dq + cv dF/dv) into each node's block."""
@@ -299,6 +346,7 @@ class GeneralizedAlpha:
         if m.slave_nodes.size:
             asm.project_slaves(m, s1.positions, s1.rotations)
             theta = relative_rotation_vectors(s1.rotations, s0.rotations)
+        self._face_candidates(s0, h)
         tol = self.opt.newton_tol * self.opt.tol_displacement
         prev = None
         tangent_iter = None  # iteration (of this step) whose state the tangent was built at
@@ -447,6 +495,17 @@ class GeneralizedAlpha:
                 continue
             self._h_cap *= 1.05
             s1, qdd, a1, _ = out
+            if self._impact_w2 > 0.0:
+                # resolve impacts: a contact that closes or opens faster than impact_speed must
+                # be integrated with steps short against its oscillation period, otherwise the
+                # scheme's acceleration memory carries the contact impulse past the release and
+                # the rebound gains energy
+                h_lim = opt.impact_step_fraction * 2.0 * np.pi / np.sqrt(self._impact_w2)
+                if h > 1.5 * h_lim and h_lim >= opt.dt_min:
+                    self.stats.rejected_steps += 1
+                    self.h = h_lim
+                    continue
+                self.h = min(self.h, max(h_lim, opt.dt_min))
             n_contact, depth, point, ratio = self._contact_info
             if ratio > 1.0:
                 # a contact went deeper than its law's max_penetration: retry smaller

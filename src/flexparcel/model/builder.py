@@ -117,6 +117,9 @@ class Model:
     box_half_by_node: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """Inner half sizes of the rounded box carried by each node (zero if none) [m], (n, 3)."""
     box_radius_by_node: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    face_sets: list = field(default_factory=list)
+    """Node-to-face contact sets: (nodes (N,), triangles (M, 3), thickness [m], law index,
+    schedule index) each."""
     free_count: int = -1
     """Number of unknowns; ``free_index`` values >= free_count are FDR slave DOFs."""
     slave_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -216,6 +219,7 @@ class ModelBuilder:
     _contacts: list = field(default_factory=list, repr=False)
     _slaves: dict = field(default_factory=dict, repr=False)
     _body_contacts: list = field(default_factory=list, repr=False)
+    _face_contacts: list = field(default_factory=list, repr=False)
     _refs: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
@@ -467,6 +471,44 @@ class ModelBuilder:
         sched = schedule if schedule is not None else Schedule.constant()
         self._body_contacts.append((nodes, int(body), r, law, sched))
 
+    def add_face_contact(
+        self, node_ids, face_node_ids, law, *, thickness: float, schedule: Schedule | None = None
+    ) -> None:
+        """Node-to-face contact: nodes ``node_ids`` against the shell faces whose corners all
+        lie in ``face_node_ids`` (packaging layer against layer, consignment against
+        consignment). ``thickness`` [m]: the contact distance, e.g. the mean of the two shells'
+        thicknesses. Both sides of a face are free (thin shells)."""
+        from flexparcel.contact.law import ContactLaw
+
+        if not isinstance(law, ContactLaw):
+            raise TypeError("add_face_contact: law must be a ContactLaw")
+        nodes = self._check_ids("add_face_contact", node_ids)
+        faces = set(self._check_ids("add_face_contact", face_node_ids).tolist())
+        h = float(thickness)
+        if not (np.isfinite(h) and h > 0.0):
+            raise ValueError(f"add_face_contact: thickness must be > 0 m, got {thickness!r}")
+        tris = []
+        for ctype, lst in self._cells.items():
+            for c in lst:
+                inside = np.array([all(int(v) in faces for v in row) for row in c], dtype=bool)
+                c = c[inside]
+                if ctype == "quad":
+                    tris.append(np.vstack([c[:, [0, 1, 2]], c[:, [0, 2, 3]]]))
+                else:
+                    tris.append(c)
+        tris = np.vstack(tris) if tris else np.zeros((0, 3), np.int64)
+        if len(tris) == 0:
+            raise ValueError("add_face_contact: face_node_ids contain no complete shell face")
+        sched = schedule if schedule is not None else Schedule.constant()
+        self._face_contacts.append((nodes, tris.astype(np.int64), h, law, sched))
+
+    def add_self_contact(
+        self, node_ids, law, *, thickness: float, schedule: Schedule | None = None
+    ) -> None:
+        """Self contact of a shell mesh (e.g. an envelope's layers): its nodes against its own
+        faces, a node never against a face it is a corner of."""
+        self.add_face_contact(node_ids, node_ids, law, thickness=thickness, schedule=schedule)
+
     # ------------------------------------------------------------------ supports
     def _check_ids(self, what: str, node_ids) -> np.ndarray:
         ids = np.atleast_1d(np.asarray(node_ids))
@@ -634,6 +676,12 @@ class ModelBuilder:
             bpr.append(np.full(len(nodes), r))
             bpl.append(np.full(len(nodes), laws.index(law)))
             bps.append(np.full(len(nodes), csched.index(sched)))
+        face_sets = []
+        for nodes, tris, h, law, sched in self._face_contacts:
+            for lst, item in ((laws, law), (csched, sched)):
+                if item not in lst:
+                    lst.append(item)
+            face_sets.append((nodes, tris, h, laws.index(law), csched.index(sched)))
         box_half = np.zeros((n, 3))
         box_rad = np.zeros(n)
         for node, shape, _ in self._rigid:
@@ -703,6 +751,7 @@ class ModelBuilder:
             bp_schedule=np.concatenate(bps) if bps else np.zeros(0, np.int64),
             box_half_by_node=box_half,
             box_radius_by_node=box_rad,
+            face_sets=face_sets,
             slave_nodes=slave_nodes,
             slave_master=slave_master,
             slave_offset=slave_offset,

@@ -1,0 +1,135 @@
+"""Node-to-face contact between shells: packaging layers against each other, consignment
+against consignment, and self contact.
+
+A contact set pairs a set of nodes with a set of triangles (the shells' quads split once).
+Candidate pairs come from the broad phase (:mod:`flexparcel.contact.broadphase`) once per time
+step, together with the side of the face each node is on at the start of the step, so a node is
+always pushed back to the side it came from (a thin shell has two free sides). Per node only the
+deepest candidate is used (a node near a shared edge is a candidate of several faces).
+
+With the closest point ``sum_i l_i x_i`` on the face (barycentric ``l``), the face normal ``n``
+towards the node and the contact thickness ``h`` (half the two shells' thicknesses):
+
+    s = h - n . (p - closest),  v_rel = v_p - sum_i l_i v_i,  s' = -n . v_rel,
+    f = F_N n + F_T on the node,  -l_i f on face vertex i.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from flexparcel.contact.geometry import point_triangle, point_triangle_contact_derivs
+from flexparcel.contact.law import P_MAX_PEN, friction_force_packed, normal_force_packed
+
+__all__ = ["face_sides", "face_contact_forces"]
+
+
+@nb.njit(cache=True)
+def face_sides(pairs, nodes, tris, pos):
+    """Side (+1/-1) of each candidate's node relative to its face, shape (K,)."""
+    out = np.empty(pairs.shape[0])
+    for k in range(pairs.shape[0]):
+        t = tris[pairs[k, 1]]
+        d = point_triangle(pos[nodes[pairs[k, 0]]], pos[t[0]], pos[t[1]], pos[t[2]])[0]
+        out[k] = 1.0 if d >= 0.0 else -1.0
+    return out
+
+
+@nb.njit(cache=True)
+def face_contact_forces(
+    pairs,
+    sides,
+    nodes,
+    tris,
+    thickness,
+    law,
+    act,
+    pos,
+    vel,
+    out_f,
+    out_k,
+    out_c,
+    out_dofs,
+    mass,
+    v_impact,
+    out_w2,
+):
+    """Forces of one contact set; blocks (K, 12, 12) of d[f_node, f_a, f_b, f_c]/d[x_node,
+    x_a, x_b, x_c] (``out_k``) and /d[v...] (``out_c``), DOF numbers (K, 12) (-1 if unused).
+    Returns (contacts, deepest penetration [m], worst penetration / max_penetration)."""
+    npts = nodes.shape[0]
+    best = np.full(npts, -1)
+    best_s = np.zeros(npts)
+    for k in range(pairs.shape[0]):
+        for j in range(12):
+            out_dofs[k, j] = -1
+        q = pairs[k, 0]
+        t = tris[pairs[k, 1]]
+        p = pos[nodes[q]]
+        dist = point_triangle(p, pos[t[0]], pos[t[1]], pos[t[2]])[0]
+        s = thickness - sides[k] * dist
+        if s > best_s[q]:
+            best_s[q] = s
+            best[q] = k
+    n_contact = 0
+    deepest = 0.0
+    worst = 0.0
+    if act == 0.0:
+        return 0, 0.0, 0.0
+    for q in range(npts):
+        k = best[q]
+        if k < 0:
+            continue
+        t = tris[pairs[k, 1]]
+        node = nodes[q]
+        s, _, bary, n, _, _, ds, dn, dbary = point_triangle_contact_derivs(
+            pos[node], pos[t[0]], pos[t[1]], pos[t[2]], thickness, int(sides[k])
+        )
+        if s <= 0.0:
+            continue
+        n_contact += 1
+        deepest = max(deepest, s)
+        worst = max(worst, s / law[P_MAX_PEN])
+        vrel = (
+            vel[node, :3]
+            - bary[0] * vel[t[0], :3]
+            - bary[1] * vel[t[1], :3]
+            - bary[2] * vel[t[2], :3]
+        )
+        vn = n[0] * vrel[0] + n[1] * vrel[1] + n[2] * vrel[2]
+        vt = vrel - vn * n
+        fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
+        if abs(vn) > v_impact and mass[node] > 0.0:
+            out_w2[0] = max(out_w2[0], act * dfn_ds / mass[node])
+        ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+        f = act * (fn * n + ft)
+        w = np.empty(4)
+        w[0] = 1.0
+        w[1:] = -bary
+        ids = np.empty(4, np.int64)
+        ids[0] = node
+        ids[1:] = t
+        for a in range(4):
+            for i in range(3):
+                out_f[ids[a], i] += w[a] * f[i]
+                out_dofs[k, 3 * a + i] = 6 * ids[a] + i
+        g = n + dft_dfn
+        dfx = act * (np.outer(g, dfn_ds * ds) + fn * dn)  # (3, 12)
+        dvrel = np.zeros((3, 12))
+        for a in range(4):
+            for i in range(3):
+                dvrel[i, 3 * a + i] = w[a]
+        dsd = np.zeros(12)
+        for j in range(12):
+            dsd[j] = -(n[0] * dvrel[0, j] + n[1] * dvrel[1, j] + n[2] * dvrel[2, j])
+        proj = np.eye(3) - np.outer(n, n)
+        dfv = act * (np.outer(g, dfn_dsd * dsd) + dft_dvt @ proj @ dvrel)
+        for a in range(4):
+            for i in range(3):
+                for j in range(12):
+                    out_k[k, 3 * a + i, j] = w[a] * dfx[i, j]
+                    out_c[k, 3 * a + i, j] = w[a] * dfv[i, j]
+                    if a > 0:
+                        out_k[k, 3 * a + i, j] -= f[i] * dbary[a - 1, j]
+    return n_contact, deepest, worst
