@@ -39,7 +39,42 @@ def internal_forces(model: Model, positions, rotations, velocities) -> tuple[np.
     """Internal (elastic + Rayleigh damping) nodal forces (n, 6) [N, N m] and strain energy [J]."""
     out = np.zeros((model.node_count, 6))
     energy = shell.element_forces(*_shell_data(model), positions, rotations, velocities, out)
+    energy += _solid_forces(model, positions, velocities, out, None, None)
     return out, energy
+
+
+def _solid_forces(model: Model, positions, velocities, out, data_k, data_c) -> float:
+    """Add the solid elements' forces to ``out`` (n, 6) and, if ``data_k`` is given, their
+    material tangents (and beta times them into ``data_c``); returns their strain energy."""
+    if not model.solid_groups:
+        return 0.0
+    from flexparcel.elements import solid
+
+    pos = np.ascontiguousarray(positions)
+    vel = np.ascontiguousarray(velocities[:, :3])
+    f3 = np.zeros((model.node_count, 3))
+    energy = 0.0
+    for g in model.solid_groups:
+        m, k = g["cells"].shape
+        fe = np.empty((m, 3 * k))
+        en = np.empty(m)
+        vr = np.empty(m)
+        args = (g["cells"], g["kl"], g["xref"], g["grad"], g["beta"], pos, vel, fe, en, vr)
+        if data_k is None:
+            solid.solid_forces(*args)
+        else:
+            ke = np.empty((m, 3 * k, 3 * k))
+            solid.solid_material_tangents(*args, ke)
+            np.add.at(data_k, g["emap"].ravel(), ke.ravel())
+            np.add.at(data_c, g["emap"].ravel(), (g["beta"][:, None, None] * ke).ravel())
+        if np.any(vr <= 0.0):
+            # an inverted element has no meaningful force: poison the residual so the solver
+            # rejects the step (and retries smaller) instead of continuing
+            out[:] = np.nan
+        solid.scatter_forces(g["cells"], fe, f3)
+        energy += float(en.sum())
+    out[:, :3] += f3
+    return energy
 
 
 def internal_forces_and_tangent(
@@ -66,6 +101,8 @@ def internal_forces_and_tangent(
         data_c,
         model.tri_emap,
     )
+    # solids contribute their material tangent in both modes (no consistent one yet)
+    energy += _solid_forces(model, positions, velocities, out, data_k, data_c)
     return out, data_k, data_c, energy
 
 

@@ -117,6 +117,9 @@ class Model:
     box_half_by_node: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """Inner half sizes of the rounded box carried by each node (zero if none) [m], (n, 3)."""
     box_radius_by_node: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    solid_groups: list = field(default_factory=list)
+    """Solid element blocks: dicts with ``kind``, ``cells`` (m, k), ``kl``, ``xref``, ``grad``,
+    ``beta`` (m,) and ``emap`` (m, 3k, 3k) CSR data slots (see flexparcel.elements.solid)."""
     face_sets: list = field(default_factory=list)
     """Node-to-face contact sets: (nodes (N,), triangles (M, 3), thickness [m], law index,
     schedule index) each."""
@@ -220,6 +223,7 @@ class ModelBuilder:
     _slaves: dict = field(default_factory=dict, repr=False)
     _body_contacts: list = field(default_factory=list, repr=False)
     _face_contacts: list = field(default_factory=list, repr=False)
+    _solids: list = field(default_factory=list, repr=False)
     _refs: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
@@ -330,6 +334,28 @@ class ModelBuilder:
         for cname, c in cells:
             self._cells.setdefault(cname, []).append(c + self._node_count)
         self._node_count += n
+        return ids
+
+    def add_solid_mesh(
+        self, points: np.ndarray, cells: np.ndarray, kind: str, *, material
+    ) -> np.ndarray:
+        """Add a solid mesh (flexible content): ``points`` [m] (n, 3), ``cells`` (m, k) of one
+        ``kind`` ("hex8", "wedge6", "pyr5", "tet4" or the meshio names) in VTK node order,
+        a :class:`flexparcel.elements.solid.SolidMaterial`. Returns the global node ids.
+        Nodes used only by solids carry no rotations (those DOFs are held)."""
+        from flexparcel.elements.solid import solid_reference_data
+
+        pts = np.asarray(points, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ValueError(f"add_solid_mesh: points must have shape (n, 3), got {pts.shape}")
+        c = np.asarray(cells)
+        ref = solid_reference_data(pts, c, kind, material)  # validates cells and material
+        ids = np.arange(self._node_count, self._node_count + len(pts))
+        self._points.append(pts)
+        self._solids.append(
+            (kind, c.astype(np.int64) + self._node_count, ref, float(material.damping_ratio))
+        )
+        self._node_count += len(pts)
         return ids
 
     def add_rigid_body(
@@ -602,6 +628,16 @@ class ModelBuilder:
             frs.append(frames)
             betas.append(np.full(len(tri), mat.damping_ratio))
             ws.append(w)
+        from flexparcel.elements.solid import ELEMENT_KINDS
+
+        solid_nodes = np.zeros(0, np.int64)
+        vtk_names = {"hex8": "hexahedron", "wedge6": "wedge", "pyr5": "pyramid", "tet4": "tetra"}
+        for _kind, cells, ref, _ in self._solids:
+            for a in range(cells.shape[1]):
+                np.add.at(mass[:, 0], cells[:, a], ref.mass[:, a])
+            solid_nodes = np.union1d(solid_nodes, cells.ravel())
+            name = next(k for k in ELEMENT_KINDS if cells.shape[1] == ELEMENT_KINDS[k])
+            self._cells.setdefault(vtk_names[name], []).append(cells)
         rigid_nodes = np.array([r[0] for r in self._rigid], dtype=np.int64)
         rigid_inertia = np.zeros((len(self._rigid), 3, 3))
         pres_nodes, pres_vel = [], []
@@ -614,7 +650,7 @@ class ModelBuilder:
         mass[:, 1] = mass[:, 2] = mass[:, 0]
         mass[:, 4] = mass[:, 5] = mass[:, 3]
         triangles = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
-        attached = np.union1d(np.unique(triangles), rigid_nodes)
+        attached = np.union1d(np.union1d(np.unique(triangles), rigid_nodes), solid_nodes)
         orphan = np.setdiff1d(np.arange(n), np.union1d(attached, self._refs))
         if orphan.size:
             raise ValueError(f"finalize: node {int(orphan[0])} belongs to no element")
@@ -624,6 +660,12 @@ class ModelBuilder:
         for node, _, motion in self._rigid:
             if motion != "free":
                 fixed[node] = True  # held or driven: not unknowns
+        # nodes only in solids have no rotational stiffness or inertia: hold their rotations
+        rot_free = np.union1d(np.unique(triangles), rigid_nodes)
+        rot_free = np.union1d(rot_free, np.array(sorted(set(self._slaves.values())), np.int64))
+        solid_only = np.setdiff1d(solid_nodes, rot_free)
+        solid_only = np.setdiff1d(solid_only, np.array(sorted(self._slaves), np.int64))
+        fixed[solid_only, 3:] = True
         loads = self._loads
         schedules: list[Schedule] = []
         ln, lv, lm, lf, ls = [], [], [], [], []
@@ -661,9 +703,28 @@ class ModelBuilder:
         slave_dofs = np.flatnonzero(is_slave.ravel())
         free_index[slave_dofs] = free.size + np.arange(slave_dofs.size)
         ext = free.size + slave_dofs.size
-        indptr, indices, emap, load_emap, diag, rigid_slots, node_slots = _sparsity(
-            triangles, free_index, ext, np.asarray(ln, dtype=np.int64), rigid_nodes, n
+        solid_cells = [cells for _, cells, _, _ in self._solids]
+        indptr, indices, emap, load_emap, diag, rigid_slots, node_slots, solid_maps = _sparsity(
+            triangles,
+            free_index,
+            ext,
+            np.asarray(ln, dtype=np.int64),
+            rigid_nodes,
+            n,
+            solid_cells,
         )
+        solid_groups = [
+            {
+                "kind": kind,
+                "cells": np.ascontiguousarray(cells),
+                "kl": ref.kl,
+                "xref": ref.xref,
+                "grad": ref.grad,
+                "beta": np.full(len(cells), beta),
+                "emap": smap,
+            }
+            for (kind, cells, ref, beta), smap in zip(self._solids, solid_maps, strict=True)
+        ]
         laws, law_index, csched = [], [], []
         cpn, cpo, cpr, cpp, cpl, cps = [], [], [], [], [], []
         bpn, bpb, bpr, bpl, bps = [], [], [], [], []
@@ -752,6 +813,7 @@ class ModelBuilder:
             box_half_by_node=box_half,
             box_radius_by_node=box_rad,
             face_sets=face_sets,
+            solid_groups=solid_groups,
             slave_nodes=slave_nodes,
             slave_master=slave_master,
             slave_offset=slave_offset,
@@ -802,7 +864,7 @@ def _check_orientation(cells: list[np.ndarray]) -> None:
         )
 
 
-def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes, node_count):
+def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes, node_count, solid_cells):
     """CSR pattern over the free DOFs and the data-slot maps; slot ``nnz`` is a trash slot.
     Every node gets its 6x6 block; ``block_nodes`` (rigid bodies) also get rotation slots."""
     m = len(triangles)
@@ -819,6 +881,16 @@ def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes, node_count)
     bc = np.tile(bd, (1, 6)).ravel()
     bok = (br >= 0) & (bc >= 0)
     keys = np.concatenate([keys, np.arange(nfree) * (nfree + 1), br[bok] * nfree + bc[bok]])
+    # solid elements: translational DOFs of their nodes, node-major
+    solid_idx = []
+    for cells in solid_cells:
+        k = cells.shape[1]
+        sd = free_index[(6 * cells[:, :, None] + np.arange(3)).reshape(len(cells), 3 * k)]
+        sr = np.repeat(sd, 3 * k, axis=1).reshape(len(cells), 3 * k, 3 * k)
+        sc = np.tile(sd, (1, 3 * k)).reshape(len(cells), 3 * k, 3 * k)
+        solid_idx.append((sr, sc))
+        sok = (sr >= 0) & (sc >= 0)
+        keys = np.concatenate([keys, sr[sok] * nfree + sc[sok]])
     uniq, inv = np.unique(keys, return_inverse=True)
     nnz = uniq.size
     emap = np.full((m, 18, 18), nnz, dtype=np.int64)
@@ -860,4 +932,10 @@ def _sparsity(triangles, free_index, nfree, load_nodes, block_nodes, node_count)
     pos = np.minimum(pos, nnz - 1)
     found = (rr >= 0) & (cc >= 0) & (uniq[pos] == key)
     node_slots = np.where(found, pos, nnz).astype(np.int64)
-    return indptr, indices, emap, load_emap, diag, rigid_slots, node_slots
+    solid_maps = []
+    for sr, sc in solid_idx:
+        key = sr * nfree + sc
+        pos_ = np.minimum(np.searchsorted(uniq, key), nnz - 1)
+        found = (sr >= 0) & (sc >= 0) & (uniq[pos_] == key)
+        solid_maps.append(np.where(found, pos_, nnz).astype(np.int64))
+    return indptr, indices, emap, load_emap, diag, rigid_slots, node_slots, solid_maps
