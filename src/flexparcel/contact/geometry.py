@@ -39,6 +39,8 @@ import math
 import numba as nb
 import numpy as np
 
+from flexparcel.elements.rotations import skew
+
 __all__ = [
     "BOX_INSIDE",
     "BOX_FACE",
@@ -98,18 +100,6 @@ def _cross(u, v):
 
 
 @nb.njit(cache=True)
-def _skew(a):
-    w = np.zeros((3, 3))
-    w[0, 1] = -a[2]
-    w[0, 2] = a[1]
-    w[1, 0] = a[2]
-    w[1, 2] = -a[0]
-    w[2, 0] = -a[1]
-    w[2, 1] = a[0]
-    return w
-
-
-@nb.njit(cache=True)
 def _pick(a, b, c, i):
     if i == 0:
         return a
@@ -119,9 +109,9 @@ def _pick(a, b, c, i):
 
 
 @nb.njit(cache=True)
-def _proj_skew(n, v, scale):
+def _projskew(n, v, scale):
     """scale * (I - n n^T) W(v), shape (3, 3)."""
-    w = _skew(v)
+    w = skew(v)
     out = np.empty((3, 3))
     for i in range(3):
         for j in range(3):
@@ -285,8 +275,8 @@ def point_box_contact_derivs(p, box_center, box_rot, half_inner, radius, point_r
     for i in range(3):
         r[i] = p[i] - box_center[i]
     ds_dtheta = _cross(r, n)
-    dn_dtheta = -_skew(n)
-    wr = _skew(r)
+    dn_dtheta = -skew(n)
+    wr = skew(r)
     for i in range(3):
         for j in range(3):
             acc = 0.0
@@ -512,8 +502,8 @@ def point_triangle_derivs(p, a, b, c):
     ee = math.sqrt(ee2)
     if region == TRI_FACE:
         # n = e/|e|, de = -W(c - a) (db - da) + W(b - a) (dc - da).
-        m_b = _proj_skew(normal, c - a, -1.0 / ee)
-        m_c = _proj_skew(normal, b - a, 1.0 / ee)
+        m_b = _projskew(normal, c - a, -1.0 / ee)
+        m_c = _projskew(normal, b - a, 1.0 / ee)
         for i in range(3):
             for j in range(3):
                 dn[i, 6 + j] = m_b[i, j]

@@ -98,7 +98,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from flexparcel.model.materials import _check_finite
+from flexparcel.model.materials import validate_elastic
 
 __all__ = [
     "ELEMENT_KINDS",
@@ -133,19 +133,7 @@ class SolidMaterial:
     damping_ratio: float = 0.0
 
     def __post_init__(self) -> None:
-        name = "SolidMaterial"
-        e = _check_finite(name, "youngs_modulus", self.youngs_modulus)
-        nu = _check_finite(name, "poisson_ratio", self.poisson_ratio)
-        rho = _check_finite(name, "density", self.density)
-        beta = _check_finite(name, "damping_ratio", self.damping_ratio)
-        if e <= 0:
-            raise ValueError(f"{name}.youngs_modulus must be > 0 Pa, got {e!r}")
-        if not 0.0 <= nu < 0.5:
-            raise ValueError(f"{name}.poisson_ratio must be in [0, 0.5), got {nu!r}")
-        if rho <= 0:
-            raise ValueError(f"{name}.density must be > 0 kg/m^3, got {rho!r}")
-        if beta < 0:
-            raise ValueError(f"{name}.damping_ratio (Rayleigh beta) must be >= 0 s, got {beta!r}")
+        validate_elastic(self, "SolidMaterial")
 
     @property
     def shear_modulus(self) -> float:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["ShellMaterial"]
+__all__ = ["ShellMaterial", "validate_elastic"]
 
 
 def _check_finite(owner: str, name: str, value: float) -> float:
@@ -16,6 +16,23 @@ def _check_finite(owner: str, name: str, value: float) -> float:
     if not math.isfinite(v):
         raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
     return v
+
+
+def validate_elastic(mat, name: str) -> None:
+    """Check the isotropic elastic fields shared by shell and solid materials: finite numbers,
+    E > 0, 0 <= nu < 0.5, rho > 0, Rayleigh beta >= 0; errors name the field and the range."""
+    e = _check_finite(name, "youngs_modulus", mat.youngs_modulus)
+    nu = _check_finite(name, "poisson_ratio", mat.poisson_ratio)
+    rho = _check_finite(name, "density", mat.density)
+    beta = _check_finite(name, "damping_ratio", mat.damping_ratio)
+    if e <= 0:
+        raise ValueError(f"{name}.youngs_modulus must be > 0 Pa, got {e!r}")
+    if not 0.0 <= nu < 0.5:
+        raise ValueError(f"{name}.poisson_ratio must be in [0, 0.5), got {nu!r}")
+    if rho <= 0:
+        raise ValueError(f"{name}.density must be > 0 kg/m^3, got {rho!r}")
+    if beta < 0:
+        raise ValueError(f"{name}.damping_ratio (Rayleigh beta) must be >= 0 s, got {beta!r}")
 
 
 @dataclass(frozen=True)
@@ -39,22 +56,10 @@ class ShellMaterial:
     damping_ratio: float = 0.0
 
     def __post_init__(self) -> None:
-        name = "ShellMaterial"
-        e = _check_finite(name, "youngs_modulus", self.youngs_modulus)
-        nu = _check_finite(name, "poisson_ratio", self.poisson_ratio)
-        rho = _check_finite(name, "density", self.density)
-        t = _check_finite(name, "thickness", self.thickness)
-        beta = _check_finite(name, "damping_ratio", self.damping_ratio)
-        if e <= 0:
-            raise ValueError(f"{name}.youngs_modulus must be > 0 Pa, got {e!r}")
-        if not 0.0 <= nu < 0.5:
-            raise ValueError(f"{name}.poisson_ratio must be in [0, 0.5), got {nu!r}")
-        if rho <= 0:
-            raise ValueError(f"{name}.density must be > 0 kg/m^3, got {rho!r}")
+        validate_elastic(self, "ShellMaterial")
+        t = _check_finite("ShellMaterial", "thickness", self.thickness)
         if t <= 0:
-            raise ValueError(f"{name}.thickness must be > 0 m, got {t!r}")
-        if beta < 0:
-            raise ValueError(f"{name}.damping_ratio (Rayleigh beta) must be >= 0 s, got {beta!r}")
+            raise ValueError(f"ShellMaterial.thickness must be > 0 m, got {t!r}")
 
     @property
     def bending_stiffness(self) -> float:
