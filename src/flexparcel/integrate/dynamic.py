@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from flexparcel.contact.bodies import box_contact_forces
 from flexparcel.contact.broadphase import point_triangle_candidates
@@ -77,6 +78,13 @@ class IntegratorOptions:
     fraction of its oscillation period 2 pi sqrt(m_node / k_contact)."""
     impact_speed: float = 0.01
     """Normal contact speed [m/s] above which a contact counts as an impact."""
+    krylov_reuse: bool = False
+    """Solve with GMRES preconditioned by the last LU factorisation (of an earlier Newton
+    matrix) and refactor only when GMRES needs more than ``krylov_max_iterations``. Measured
+    no gain on the sheet swing and the envelope drop (the step size, hence the mass term
+    M / (beta h^2), and the contact set change too fast between factorisations), so off."""
+    krylov_rtol: float = 1e-6
+    krylov_max_iterations: int = 12
     tangent: str = "material"
     """"material": B^T K_l B + the SO(3) increment map, cheap (no frame-rotation terms, so
     Newton converges linearly; measured 2 iterations per step on the sheet swing) or
@@ -107,6 +115,8 @@ class Stats:
     rejected_steps: int = 0
     newton_iterations: int = 0
     factorizations: int = 0
+    krylov_solves: int = 0
+    krylov_iterations: int = 0
     tangent_assemblies: int = 0
     wall_s: dict = field(
         default_factory=lambda: {"tangent": 0.0, "factor": 0.0, "solve": 0.0, "residual": 0.0}
@@ -127,7 +137,11 @@ class GeneralizedAlpha:
         self.solver = make_linear_solver(self.opt.linear_solver)
         self.stats = Stats()
         self.h = self.opt.dt_initial
-        self._factor_h = None  # step size the current factorisation was built with
+        self._factor_h = None  # step size the current matrix was built with
+        self._mat = None  # the current Newton matrix (CSR)
+        self._factored_mat = None  # the matrix whose LU factors the solver holds
+        self._has_factor = False
+        self._cooldown = 0
         self._tangent = None  # (K data, C data) of the last tangent assembly
         self._refresh_next = False
         self._h_cap = np.inf
@@ -293,6 +307,39 @@ class GeneralizedAlpha:
         if m.cp_node.size:
             np.add.at(data, m.node_block_slots[m.cp_node].ravel(), -(cdq + cv * cdv).ravel())
 
+    def _factor(self, mat) -> bool:
+        try:
+            self.solver.factor(mat)
+        except SingularMatrixError:
+            self._tangent = None
+            self._has_factor = False
+            return False
+        self._factored_mat = mat
+        self._has_factor = True
+        self.stats.factorizations += 1
+        return True
+
+    def _krylov_solve(self, mat, r):
+        """Newton correction -mat^-1 r by GMRES preconditioned with the last factorisation (of
+        an earlier tangent); None if it needs more than ``krylov_max_iterations``."""
+        n = mat.shape[0]
+        prec = spla.LinearOperator((n, n), matvec=self.solver.precondition)
+        its = [0]
+
+        def count(_):
+            its[0] += 1
+
+        x, info = spla.gmres(mat, -r, rtol=self.opt.krylov_rtol,
+                             restart=self.opt.krylov_max_iterations, maxiter=1, M=prec,
+                             callback=count, callback_type="pr_norm")  # fmt: skip
+        self.stats.krylov_iterations += its[0]
+        if info != 0 or not np.all(np.isfinite(x)):
+            # the old factors no longer fit: factor directly for the next few matrices
+            self._cooldown = 8
+            return None
+        self.stats.krylov_solves += 1
+        return x
+
     def _drive_prescribed(self, s: State) -> None:
         """Place the prescribed bodies at time ``s.time``: x = x0 + v t, R = exp(w t)."""
         m = self.model
@@ -409,13 +456,14 @@ class GeneralizedAlpha:
                     mat = t_red.T @ mat @ t_red + asm.link_geometric_stiffness(
                         m, r_link, s1.rotations, t_red
                     )
-                try:
-                    self.solver.factor(mat.tocsr())
-                except SingularMatrixError:
-                    self._tangent = None
-                    return None
+                self._mat = mat.tocsr()
                 self._factor_h = h
-                self.stats.factorizations += 1
+                # an older factorisation may still precondition GMRES on this matrix well
+                # enough (Krylov reuse); otherwise factor now
+                krylov = self.opt.krylov_reuse and self._has_factor and self._cooldown == 0
+                self._cooldown = max(0, self._cooldown - 1)
+                if not krylov and not self._factor(self._mat):
+                    return None
                 self.stats.wall_s["factor"] += _time.perf_counter() - t0
             r = asm.free_vector(m, self._nodal_residual(s1, qdd, v1, fint, fc, t1))
             if t_red is not None:
@@ -423,7 +471,16 @@ class GeneralizedAlpha:
             if not np.all(np.isfinite(r)):
                 return None
             t0 = _time.perf_counter()
-            dx = -self.solver.solve(r)
+            dx = None
+            if self._factored_mat is not self._mat:
+                dx = self._krylov_solve(self._mat, r)
+                if dx is None:  # GMRES did not converge fast: factor the current matrix
+                    t1_ = _time.perf_counter()
+                    if not self._factor(self._mat):
+                        return None
+                    self.stats.wall_s["factor"] += _time.perf_counter() - t1_
+            if dx is None:
+                dx = -self.solver.solve(r)
             self.stats.wall_s["solve"] += _time.perf_counter() - t0
             self.stats.newton_iterations += 1
             if not np.all(np.isfinite(dx)):

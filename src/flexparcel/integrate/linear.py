@@ -44,6 +44,10 @@ class LinearSolver:
         self.solve_count += 1
         return self._lu.solve(b)
 
+    def precondition(self, b: np.ndarray) -> np.ndarray:
+        """Apply the held factorisation as a preconditioner (for Krylov reuse)."""
+        return self._lu.solve(b)
+
 
 class PardisoSolver(LinearSolver):
     """Intel MKL Pardiso via pypardiso (real nonsymmetric, mtype 11: the spin tangent is not
@@ -66,6 +70,9 @@ class PardisoSolver(LinearSolver):
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         self.solve_count += 1
+        return self._solver.solve(self._a, b)
+
+    def precondition(self, b: np.ndarray) -> np.ndarray:
         return self._solver.solve(self._a, b)
 
 
