@@ -24,7 +24,13 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flexparcel.contact.law import P_MAX_PEN, friction_force_packed, normal_force_packed
+from flexparcel.contact.law import (
+    P_K_T,
+    P_MAX_PEN,
+    friction_force_packed,
+    normal_force_packed,
+    stick_friction_packed,
+)
 from flexparcel.elements.rotations import skew
 
 __all__ = ["plane_contact_forces"]
@@ -51,6 +57,11 @@ def plane_contact_forces(
     mass,
     v_impact,
     out_w2,
+    u_el,
+    u_el_new,
+    h,
+    pos0,
+    rot0,
 ):
     """Generalised contact forces of all points.
 
@@ -100,7 +111,19 @@ def plane_contact_forces(
         fn, dfn_ds, dfn_dsd = normal_force_packed(s, sdot, law)
         if abs(sdot) > v_impact and mass[node] > 0.0:
             out_w2[0] = max(out_w2[0], act * dfn_ds / mass[node])
-        ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+        stick = law[P_K_T] > 0.0
+        dft_du = np.zeros((3, 3))
+        if stick:
+            # stick model: elastic tangential spring with a slip limit, history u_el carried
+            # from the last accepted step; the tangential displacement of the contact point
+            # relative to the (moving) surface over this step drives it
+            du = x + rho - pos0[node] - rot0[node] @ cp_offset[q] - plane_velocity[pl] * h
+            du_t = du - (n[0] * du[0] + n[1] * du[1] + n[2] * du[2]) * n
+            ft, u_new, _, dft_du, dft_dfn = stick_friction_packed(u_el[q], du_t, fn, h, law)
+            u_el_new[q] = u_new
+            dft_dvt = np.zeros((3, 3))
+        else:
+            ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
         f = act * (fn * n + ft)
         m = np.cross(a, f)
         for i in range(3):
@@ -122,6 +145,11 @@ def plane_contact_forces(
         dfn_q = dfn_ds * ds_dq
         dfn_v = dfn_dsd * dsd_dv
         df_q = np.outer(n + dft_dfn, dfn_q)
+        if stick:
+            dp_dq = np.zeros((3, 6))
+            dp_dq[:, :3] = np.eye(3)
+            dp_dq[:, 3:] = -skew(rho)
+            df_q += dft_du @ proj @ dp_dq
         df_v = np.outer(n + dft_dfn, dfn_v) + dft_dvt @ dvt_dv
         df_q *= act
         df_v *= act

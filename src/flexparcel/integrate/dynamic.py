@@ -150,6 +150,9 @@ class GeneralizedAlpha:
         self._coupled_blocks = []
         self._face_cands = []
         self._impact_w2 = 0.0
+        self._u_el = np.zeros((model.cp_node.size, 3))  # stick-model history per contact point
+        self._u_el_trial = self._u_el.copy()
+        self._h_now = self.opt.dt_initial
         self._node_mass = np.ascontiguousarray(model.mass[:, 0])
         mask = model.free_index >= 0
         # DOF number of each assembled (unknown or FDR slave) index, in that index order
@@ -231,7 +234,8 @@ class GeneralizedAlpha:
                 m.cp_node, m.cp_offset, m.cp_radius, m.cp_plane, m.cp_law,
                 factors[m.cp_schedule], m.plane_point, m.plane_normal, m.plane_velocity,
                 m.contact_laws, s.positions, s.rotations, s.velocities, fc, dq, dv,
-                self._node_mass, self.opt.impact_speed, w2,
+                self._node_mass, self.opt.impact_speed, w2, self._u_el, self._u_el_trial,
+                self._h_now, self._s0.positions, self._s0.rotations,
             )  # fmt: skip
         self._coupled_blocks = []
         nq = m.bp_node.size
@@ -394,6 +398,9 @@ class GeneralizedAlpha:
             asm.project_slaves(m, s1.positions, s1.rotations)
             theta = relative_rotation_vectors(s1.rotations, s0.rotations)
         self._face_candidates(s0, h)
+        self._h_now = h
+        self._s0 = s0
+        self._u_el_trial = np.zeros_like(self._u_el)  # points out of contact lose their spring
         tol = self.opt.newton_tol * self.opt.tol_displacement
         prev = None
         tangent_iter = None  # iteration (of this step) whose state the tangent was built at
@@ -517,6 +524,9 @@ class GeneralizedAlpha:
                 )
                 s1.velocities = v1
                 s1.accelerations = qdd
+                if m.cp_node.size:
+                    # contact history (stick springs) and contact info of the converged state
+                    self._contact(s1, t1)
                 return s1, qdd, a1, it
             prev = norm
             diverging = diverging + 1 if rate > 1.0 else 0
@@ -591,6 +601,7 @@ class GeneralizedAlpha:
             elif h < opt.dt_initial:
                 # fixed-step mode: after a Newton failure forced sub-steps, return to the step
                 self.h = min(opt.dt_initial, 2.0 * h)
+            self._u_el = self._u_el_trial.copy()  # commit the stick-model history
             self._alg = a1
             self.stats.steps += 1
             return s1
