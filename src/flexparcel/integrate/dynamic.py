@@ -38,6 +38,7 @@ import scipy.sparse.linalg as spla
 
 from flexparcel.contact.bodies import box_contact_forces
 from flexparcel.contact.broadphase import point_triangle_candidates
+from flexparcel.contact.edges import edge_plane_forces
 from flexparcel.contact.faces import face_contact_forces, face_sides
 from flexparcel.contact.planes import plane_contact_forces
 from flexparcel.elements.rotations import (
@@ -253,6 +254,18 @@ class GeneralizedAlpha:
             deeper = binfo[1] > info[1]
             info = (info[0] + binfo[0], max(info[1], binfo[1]),
                     binfo[2] if deeper else info[2], max(info[3], binfo[3]))  # fmt: skip
+        for edges, plane, radius, samples, law, sched in m.edge_sets:
+            ne = edges.shape[0]
+            ek = np.zeros((ne, 6, 6))
+            ec = np.zeros((ne, 6, 6))
+            dofs = np.zeros((ne, 6), dtype=np.int64)
+            nc, depth, ratio = edge_plane_forces(
+                edges, m.plane_point[plane], m.plane_normal[plane], m.plane_velocity[plane],
+                radius, samples, m.contact_laws[law], factors[sched], s.positions,
+                s.velocities, fc, ek, ec, dofs, self._node_mass, self.opt.impact_speed, w2,
+            )  # fmt: skip
+            self._coupled_blocks.append((ek, ec, dofs))
+            info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
         for (nodes, tris, thick, law, sched), (pairs, sides) in zip(
             m.face_sets, self._face_cands, strict=True
         ):
@@ -524,7 +537,7 @@ class GeneralizedAlpha:
                 )
                 s1.velocities = v1
                 s1.accelerations = qdd
-                if m.cp_node.size:
+                if m.cp_node.size or m.edge_sets or m.face_sets or m.bp_node.size:
                     # contact history (stick springs) and contact info of the converged state
                     self._contact(s1, t1)
                 return s1, qdd, a1, it

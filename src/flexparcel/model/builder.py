@@ -120,6 +120,8 @@ class Model:
     solid_groups: list = field(default_factory=list)
     """Solid element blocks: dicts with ``kind``, ``cells`` (m, k), ``kl``, ``xref``, ``grad``,
     ``beta`` (m,) and ``emap`` (m, 3k, 3k) CSR data slots (see flexparcel.elements.solid)."""
+    edge_sets: list = field(default_factory=list)
+    """Line-contact sets: (edges (E, 2), plane, radius [m], samples, law index, schedule)."""
     face_sets: list = field(default_factory=list)
     """Node-to-face contact sets: (nodes (N,), triangles (M, 3), thickness [m], law index,
     schedule index) each."""
@@ -224,6 +226,7 @@ class ModelBuilder:
     _body_contacts: list = field(default_factory=list, repr=False)
     _face_contacts: list = field(default_factory=list, repr=False)
     _solids: list = field(default_factory=list, repr=False)
+    _edge_contacts: list = field(default_factory=list, repr=False)
     _refs: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
@@ -528,6 +531,52 @@ class ModelBuilder:
         sched = schedule if schedule is not None else Schedule.constant()
         self._face_contacts.append((nodes, tris.astype(np.int64), h, law, sched))
 
+    def add_edge_contact(
+        self,
+        node_ids,
+        plane: int,
+        law,
+        *,
+        radius: float = 0.0,
+        samples: int = 3,
+        schedule: Schedule | None = None,
+    ) -> None:
+        """Line contact of the shell edges whose two nodes are both in ``node_ids`` (e.g. the
+        glued border of an envelope standing on it) against plane ``plane``; each edge is
+        sampled at ``samples`` stations (see :mod:`flexparcel.contact.edges`)."""
+        from flexparcel.contact.law import ContactLaw
+
+        if not isinstance(law, ContactLaw):
+            raise TypeError("add_edge_contact: law must be a ContactLaw")
+        if not (isinstance(plane, int | np.integer) and 0 <= plane < len(self._planes)):
+            raise ValueError(
+                f"add_edge_contact: unknown plane {plane!r}; planes are 0..{len(self._planes) - 1}"
+            )
+        if int(samples) != samples or samples < 1:
+            raise ValueError(f"add_edge_contact: samples must be an integer >= 1, got {samples!r}")
+        nodes = set(self._check_ids("add_edge_contact", node_ids).tolist())
+        edges = set()
+        for lst in self._cells.values():
+            for c in lst:
+                k = c.shape[1]
+                for a in range(k):
+                    for u, v in zip(c[:, a].tolist(), c[:, (a + 1) % k].tolist(), strict=True):
+                        if u in nodes and v in nodes:
+                            edges.add((min(u, v), max(u, v)))
+        if not edges:
+            raise ValueError("add_edge_contact: node_ids contain no shell edge")
+        sched = schedule if schedule is not None else Schedule.constant()
+        self._edge_contacts.append(
+            (
+                np.array(sorted(edges), dtype=np.int64),
+                int(plane),
+                float(radius),
+                int(samples),
+                law,
+                sched,
+            )
+        )
+
     def add_self_contact(
         self, node_ids, law, *, thickness: float, schedule: Schedule | None = None
     ) -> None:
@@ -737,6 +786,12 @@ class ModelBuilder:
             bpr.append(np.full(len(nodes), r))
             bpl.append(np.full(len(nodes), laws.index(law)))
             bps.append(np.full(len(nodes), csched.index(sched)))
+        edge_sets = []
+        for edges, plane, radius, samples, law, sched in self._edge_contacts:
+            for lst, item in ((laws, law), (csched, sched)):
+                if item not in lst:
+                    lst.append(item)
+            edge_sets.append((edges, plane, radius, samples, laws.index(law), csched.index(sched)))
         face_sets = []
         for nodes, tris, h, law, sched in self._face_contacts:
             for lst, item in ((laws, law), (csched, sched)):
@@ -813,6 +868,7 @@ class ModelBuilder:
             box_half_by_node=box_half,
             box_radius_by_node=box_rad,
             face_sets=face_sets,
+            edge_sets=edge_sets,
             solid_groups=solid_groups,
             slave_nodes=slave_nodes,
             slave_master=slave_master,

@@ -1,0 +1,88 @@
+"""Line contact: shell edges against rigid planes (an envelope standing on its glued edge).
+
+Each edge (nodes i, j) is sampled at ``k`` Gauss-Lobatto-like stations xi = (m + 1/2)/k,
+m = 0..k-1 (midpoints of k equal parts), each carrying a contact point that moves with the edge,
+``p(xi) = (1 - xi) x_i + xi x_j``, with the contact law scaled by 1/k so that a uniformly
+pressed edge carries the law's force once. The point force f is shared by the two nodes as
+``(1 - xi) f`` and ``xi f``; a belt's surface velocity enters the slip as for point contact.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from flexparcel.contact.law import P_MAX_PEN, friction_force_packed, normal_force_packed
+
+__all__ = ["edge_plane_forces"]
+
+
+@nb.njit(cache=True)
+def edge_plane_forces(
+    edges,
+    plane_point,
+    plane_normal,
+    plane_velocity,
+    radius,
+    samples,
+    law,
+    act,
+    pos,
+    vel,
+    out_f,
+    out_k,
+    out_c,
+    out_dofs,
+    mass,
+    v_impact,
+    out_w2,
+):
+    """Forces of all edges (E, 2) against one plane; blocks (E, 6, 6) of d[f_i, f_j] /
+    d[x_i, x_j] (``out_k``) and / d[v_i, v_j] (``out_c``), DOF numbers (E, 6).
+    Returns (points in contact, deepest penetration [m], worst penetration / max)."""
+    n = plane_normal
+    n_contact = 0
+    deepest = 0.0
+    worst = 0.0
+    scale = act / samples
+    proj = np.eye(3) - np.outer(n, n)
+    for e in range(edges.shape[0]):
+        i, j = edges[e, 0], edges[e, 1]
+        for a in range(3):
+            out_dofs[e, a] = 6 * i + a
+            out_dofs[e, 3 + a] = 6 * j + a
+        for m in range(samples):
+            xi = (m + 0.5) / samples
+            w = np.array([1.0 - xi, xi])
+            p = w[0] * pos[i] + w[1] * pos[j]
+            s = radius - (
+                n[0] * (p[0] - plane_point[0])
+                + n[1] * (p[1] - plane_point[1])
+                + n[2] * (p[2] - plane_point[2])
+            )
+            if s <= 0.0:
+                continue
+            n_contact += 1
+            deepest = max(deepest, s)
+            worst = max(worst, s / law[P_MAX_PEN])
+            vc = w[0] * vel[i, :3] + w[1] * vel[j, :3] - plane_velocity
+            vn = n[0] * vc[0] + n[1] * vc[1] + n[2] * vc[2]
+            vt = vc - vn * n
+            fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
+            mw = w[0] * mass[i] + w[1] * mass[j]
+            if abs(vn) > v_impact and mw > 0.0:
+                out_w2[0] = max(out_w2[0], scale * dfn_ds / mw)
+            ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+            f = scale * (fn * n + ft)
+            g = n + dft_dfn
+            kx = -scale * dfn_ds * np.outer(g, n)  # d f / d p
+            kv = scale * (-dfn_dsd * np.outer(g, n) + dft_dvt @ proj)  # d f / d v_c
+            for a in range(2):
+                node = edges[e, a]
+                for r in range(3):
+                    out_f[node, r] += w[a] * f[r]
+                    for b in range(2):
+                        for c in range(3):
+                            out_k[e, 3 * a + r, 3 * b + c] += w[a] * w[b] * kx[r, c]
+                            out_c[e, 3 * a + r, 3 * b + c] += w[a] * w[b] * kv[r, c]
+    return n_contact, deepest, worst
