@@ -474,6 +474,32 @@ class ModelBuilder:
             self._slaves[node] = reference
         return reference
 
+    def add_rigid_mesh(self, points: np.ndarray, triangles: np.ndarray, body: int) -> np.ndarray:
+        """Attach a triangle-mesh surface [m] to rigid body ``body`` (a deflector, a roller, a
+        chute): its vertices become massless nodes tied to the body (FDR) and its triangles
+        faces that shell nodes can touch through :meth:`add_face_contact`. Returns the vertex
+        node ids."""
+        pts = np.asarray(points, dtype=float)
+        tri = np.asarray(triangles)
+        if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
+            raise ValueError(
+                f"add_rigid_mesh: points must be finite, shape (n, 3), got {pts.shape}"
+            )
+        if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
+            raise ValueError("add_rigid_mesh: triangles must be integers of shape (m, 3)")
+        if tri.size and (tri.min() < 0 or tri.max() >= len(pts)):
+            raise ValueError(f"add_rigid_mesh: triangle node ids must be in [0, {len(pts) - 1}]")
+        rigid = {node for node, _, _ in self._rigid}
+        if int(body) not in rigid:
+            raise ValueError(f"add_rigid_mesh: body {body!r} is not a rigid body's node")
+        ids = np.arange(self._node_count, self._node_count + len(pts))
+        self._points.append(pts)
+        self._node_count += len(pts)
+        self._refs.extend(ids.tolist())  # element-free nodes are allowed
+        self._cells.setdefault("triangle", []).append(tri.astype(np.int64) + ids[0])
+        self.add_fdr(ids, reference=int(body))
+        return ids
+
     def add_fixed_joint(self, body_a: int, body_b: int) -> None:
         """Weld two rigid bodies (or any two nodes): ``body_b`` follows ``body_a``."""
         self.add_fdr([body_b], reference=body_a)
