@@ -551,9 +551,13 @@ class ModelBuilder:
                     tris.append(np.vstack([c[:, [0, 1, 2]], c[:, [0, 2, 3]]]))
                 else:
                     tris.append(c)
+        tris.extend(t for t in [_solid_boundary_triangles(self._solids, faces)] if len(t))
         tris = np.vstack(tris) if tris else np.zeros((0, 3), np.int64)
         if len(tris) == 0:
-            raise ValueError("add_face_contact: face_node_ids contain no complete shell face")
+            raise ValueError(
+                "add_face_contact: face_node_ids contain no complete shell face or solid "
+                "boundary face"
+            )
         sched = schedule if schedule is not None else Schedule.constant()
         self._face_contacts.append((nodes, tris.astype(np.int64), h, law, sched))
 
@@ -921,6 +925,35 @@ class ModelBuilder:
         nodes = np.asarray(nodes, dtype=np.int64)
         masters = np.asarray(masters, dtype=np.int64)
         return nodes, masters, (pos0[nodes] - pos0[masters]).reshape(-1, 3)
+
+
+# faces of the solid kinds in VTK node order (quads are split in two triangles below)
+_SOLID_FACES = {
+    8: ([0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]),
+    6: ([0, 2, 1], [3, 4, 5], [0, 1, 4, 3], [1, 2, 5, 4], [2, 0, 3, 5]),
+    5: ([0, 3, 2, 1], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]),
+    4: ([0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]),
+}
+
+
+def _solid_boundary_triangles(solids: list, nodes: set) -> np.ndarray:
+    """Triangles of the boundary faces (faces of exactly one solid element, over all solid
+    blocks) whose corners all lie in ``nodes``, shape (m, 3)."""
+    count: dict = {}
+    faces = []
+    for _, cells, _, _ in solids:
+        for face in _SOLID_FACES[cells.shape[1]]:
+            for row in cells[:, face].tolist():
+                key = tuple(sorted(row))
+                count[key] = count.get(key, 0) + 1
+                faces.append((key, row))
+    out = []
+    for key, row in faces:
+        if count[key] == 1 and all(v in nodes for v in row):
+            out.append(row[:3])
+            if len(row) == 4:
+                out.append([row[0], row[2], row[3]])
+    return np.asarray(out, dtype=np.int64).reshape(-1, 3)
 
 
 def _check_orientation(cells: list[np.ndarray]) -> None:
