@@ -6,12 +6,15 @@ The structural core is imported here. The calibration and selection toolkits liv
 
 __version__ = "0.1.0"
 
+from flexparcel.contact.law import ContactLaw
+from flexparcel.elements.solid import SolidMaterial
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.integrate.errors import ConvergenceError
 from flexparcel.integrate.static import StaticResult, solve_static
 from flexparcel.model import mesh
 from flexparcel.model.builder import Model, ModelBuilder, State
 from flexparcel.model.materials import ShellMaterial
+from flexparcel.model.rigid import PrescribedMotion, RoundedBox
 from flexparcel.model.schedule import Schedule
 from flexparcel.simulate import SimulationResult, simulate
 
@@ -22,6 +25,10 @@ __all__ = [
     "Model",
     "State",
     "ShellMaterial",
+    "SolidMaterial",
+    "RoundedBox",
+    "PrescribedMotion",
+    "ContactLaw",
     "Schedule",
     "solve_static",
     "StaticResult",
