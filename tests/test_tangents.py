@@ -148,3 +148,36 @@ def test_assembled_static_tangent_with_follower_loads():
         apply_increment(model, sm, -d)
         kfd[:, j] = (residual(sp) - residual(sm)) / (2 * EPS)
     assert np.abs(k - kfd).max() <= RTOL * np.abs(kfd).max()
+
+
+def test_reduced_tangent_with_fdr_links_matches_finite_differences():
+    # T^T K T plus the links' geometric stiffness is the derivative of the reduced residual
+    # T^T r with respect to the unknowns (slaves follow their master exactly)
+    b, tip, _ = strip_model(1.0, 0.5, 0.01, 3, 1, e=1e6, nu=0.3)
+    ref = b.add_fdr(tip)
+    b.add_moment(ref, (0.0, -0.5, 0.2), follower=True)
+    model = b.finalize()
+    rng = np.random.default_rng(3)
+    state = model.initial_state()
+    apply_increment(model, state, 0.1 * rng.standard_normal(model.dof_count))
+    zeros = np.zeros((model.node_count, 6))
+
+    def residual(st):
+        fint, _ = asm.internal_forces(model, st.positions, st.rotations, zeros)
+        r = asm.free_vector(model, fint - asm.external_forces(model, 0.0, st.rotations))
+        return asm.reduction(model, st.rotations).T @ r, r
+
+    _, data, _, _ = asm.internal_forces_and_tangent(model, state.positions, state.rotations, zeros)
+    asm.add_follower_tangent(model, data, 0.0, state.rotations)
+    t = asm.reduction(model, state.rotations)
+    k = (t.T @ asm.csr_from_data(model, data) @ t).toarray()
+    k += asm.link_geometric_stiffness(model, residual(state)[1], state.rotations, t).toarray()
+    kfd = np.zeros_like(k)
+    for j in range(model.dof_count):
+        d = np.zeros(model.dof_count)
+        d[j] = EPS
+        sp_, sm = state.copy(), state.copy()
+        apply_increment(model, sp_, d)
+        apply_increment(model, sm, -d)
+        kfd[:, j] = (residual(sp_)[0] - residual(sm)[0]) / (2 * EPS)
+    assert np.abs(k - kfd).max() <= RTOL * np.abs(kfd).max()

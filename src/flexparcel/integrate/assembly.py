@@ -163,6 +163,18 @@ def nodal_from_ext(model: Model, vec: np.ndarray) -> np.ndarray:
     return full.reshape(-1, 6)
 
 
+def _skew_many(v: np.ndarray) -> np.ndarray:
+    """W(v) for each row of v (k, 3) -> (k, 3, 3)."""
+    w = np.zeros((len(v), 3, 3))
+    w[:, 0, 1], w[:, 0, 2], w[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    return w - np.transpose(w, (0, 2, 1))
+
+
+def _slave_arms(model: Model, rotations: np.ndarray) -> np.ndarray:
+    """Arms R_m b of all slaves in world axes [m], shape (s, 3)."""
+    return np.einsum("kij,kj->ki", rotations[model.slave_master], model.slave_offset)
+
+
 def reduction(model: Model, rotations: np.ndarray) -> sp.csr_matrix | None:
     """Rigid-link map T (ext_count, dof_count) from the unknowns to all assembled DOFs, or None
     without FDRs. A slave at offset b from its master (body frame) moves as
@@ -171,29 +183,20 @@ def reduction(model: Model, rotations: np.ndarray) -> sp.csr_matrix | None:
     if model.slave_nodes.size == 0:
         return None
     nf, fi = model.dof_count, model.free_index
-    rows, cols, vals = [np.arange(nf)], [np.arange(nf)], [np.ones(nf)]
-    for s_node, m_node, off in zip(
-        model.slave_nodes, model.slave_master, model.slave_offset, strict=True
-    ):
-        arm = skew(rotations[m_node] @ off)
-        for i in range(6):
-            rs = fi[6 * s_node + i]
-            for j in range(6):
-                cm = fi[6 * m_node + j]
-                if cm < 0 or cm >= nf:
-                    continue  # master DOF held or prescribed
-                if i < 3:
-                    v = (1.0 if i == j else 0.0) if j < 3 else -arm[i, j - 3]
-                else:
-                    v = 1.0 if (j >= 3 and i == j) else 0.0
-                if v != 0.0:
-                    rows.append([rs])
-                    cols.append([cm])
-                    vals.append([v])
-    return sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-        shape=(model.ext_count, nf),
-    )
+    fs = fi[6 * model.slave_nodes[:, None] + np.arange(6)]  # (s, 6) slave rows
+    fm = fi[6 * model.slave_master[:, None] + np.arange(6)]  # (s, 6) master columns
+    warm = _skew_many(_slave_arms(model, rotations))
+    rows = [
+        np.arange(nf),
+        fs[:, :3].ravel(),
+        fs[:, 3:].ravel(),
+        np.repeat(fs[:, :3], 3, axis=1).ravel(),
+    ]
+    cols = [np.arange(nf), fm[:, :3].ravel(), fm[:, 3:].ravel(), np.tile(fm[:, 3:], (1, 3)).ravel()]
+    vals = [np.ones(nf), np.ones(fs[:, :3].size), np.ones(fs[:, 3:].size), -warm.ravel()]
+    rows, cols, vals = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    ok = (cols >= 0) & (cols < nf)  # master DOFs held or prescribed carry nothing
+    return sp.csr_matrix((vals[ok], (rows[ok], cols[ok])), shape=(model.ext_count, nf))
 
 
 def link_geometric_stiffness(model: Model, r_ext: np.ndarray, rotations, t: sp.csr_matrix):
@@ -201,32 +204,19 @@ def link_geometric_stiffness(model: Model, r_ext: np.ndarray, rotations, t: sp.c
     gains ``a x r_s`` from each slave's force residual ``r_s`` at arm ``a = R_m b``, whose
     derivative with respect to the master's spin is ``W(r_s) W(a)``."""
     nf, fi = model.dof_count, model.free_index
-    rows, cols, vals = [], [], []
-    for s_node, m_node, off in zip(
-        model.slave_nodes, model.slave_master, model.slave_offset, strict=True
-    ):
-        mr = fi[6 * m_node + 3 : 6 * m_node + 6]
-        if np.any(mr < 0) or np.any(mr >= nf):
-            continue
-        rs = r_ext[fi[6 * s_node : 6 * s_node + 3]]
-        blk = skew(rs) @ skew(rotations[m_node] @ off)
-        rows.append(np.repeat(mr, 3))
-        cols.append(np.tile(mr, 3))
-        vals.append(blk.ravel())
-    if not rows:
-        return sp.csr_matrix((nf, nf))
-    return sp.csr_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(nf, nf)
-    )
+    mr = fi[6 * model.slave_master[:, None] + 3 + np.arange(3)]  # (s, 3)
+    rs = r_ext[fi[6 * model.slave_nodes[:, None] + np.arange(3)]]  # (s, 3)
+    blk = _skew_many(rs) @ _skew_many(_slave_arms(model, rotations))
+    ok = np.all((mr >= 0) & (mr < nf), axis=1)
+    rows = np.repeat(mr[ok], 3, axis=1).ravel()
+    cols = np.tile(mr[ok], (1, 3)).ravel()
+    return sp.csr_matrix((blk[ok].ravel(), (rows, cols)), shape=(nf, nf))
 
 
 def project_slaves(model: Model, positions: np.ndarray, rotations: np.ndarray) -> None:
     """Place every FDR slave exactly on its master's rigid motion (in place)."""
-    for s_node, m_node, off in zip(
-        model.slave_nodes, model.slave_master, model.slave_offset, strict=True
-    ):
-        positions[s_node] = positions[m_node] + rotations[m_node] @ off
-        rotations[s_node] = rotations[m_node]
+    positions[model.slave_nodes] = positions[model.slave_master] + _slave_arms(model, rotations)
+    rotations[model.slave_nodes] = rotations[model.slave_master]
 
 
 def kinetic_energy(model: Model, velocities: np.ndarray, rotations: np.ndarray) -> float:
