@@ -3,26 +3,16 @@
 import numpy as np
 
 import flexparcel as fp
+from conftest import drop_sheet_on
 from flexparcel.contact.law import ContactLaw
 
 
 def _stack(drop=0.005, t=0.3e-3):
     b = fp.ModelBuilder()
-    mat = fp.ShellMaterial(926e6, 0.1, 2424.0, t, 1.71e-3)
     p1, q1 = fp.mesh.rectangle(0.1, 0.1, 8, 8, origin=(-0.05, -0.05, 0.0))
-    low = b.add_shell_mesh(p1, q1, material=mat)
+    low = b.add_shell_mesh(p1, q1, material=fp.ShellMaterial(926e6, 0.1, 2424.0, t, 1.71e-3))
     b.clamp(low)
-    p2, q2 = fp.mesh.rectangle(0.06, 0.06, 6, 6, origin=(-0.03, -0.03, drop))
-    up = b.add_shell_mesh(p2, q2, material=mat)
-    law = ContactLaw(
-        stiffness=1e4,
-        damping=0.5,
-        damping_option="indentation",
-        indentation_exponent=0.0,
-        mu_static=0.3,
-        mu_dynamic=0.3,
-    )
-    b.add_face_contact(up, low, law, thickness=t)
+    up = drop_sheet_on(b, low, drop, t)
     return b.finalize(), up
 
 

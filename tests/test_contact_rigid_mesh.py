@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import flexparcel as fp
-from flexparcel.contact.law import ContactLaw
+from conftest import assert_rests_at_contact_thickness, drop_sheet_on
 from flexparcel.model.rigid import RoundedBox
 
 
@@ -12,26 +12,12 @@ def test_sheet_rests_on_a_fixed_triangulated_surface():
     # a 60 mm sheet falls 5 mm onto a fixed rigid body's two-triangle top surface (z = 0); it
     # comes to rest one contact thickness above it (static sink m_node g / c = 6e-6 m) as on
     # a plane, and never passes through
-    t = 0.3e-3
     b = fp.ModelBuilder()
     body = b.add_rigid_body(RoundedBox(0.2, 0.2, 0.02, mass=1.0), (0.0, 0.0, -0.01), motion="fixed")
     surf = np.array([[-0.1, -0.1, 0.0], [0.1, -0.1, 0.0], [0.1, 0.1, 0.0], [-0.1, 0.1, 0.0]])
     verts = b.add_rigid_mesh(surf, np.array([[0, 1, 2], [0, 2, 3]]), body)
-    pts, quads = fp.mesh.rectangle(0.06, 0.06, 6, 6, origin=(-0.03, -0.03, 0.005))
-    sheet = b.add_shell_mesh(pts, quads, material=fp.ShellMaterial(926e6, 0.1, 2424.0, t, 1.71e-3))
-    law = ContactLaw(
-        stiffness=1e4,
-        damping=0.5,
-        damping_option="indentation",
-        indentation_exponent=0.0,
-        mu_static=0.3,
-        mu_dynamic=0.3,
-    )
-    b.add_face_contact(sheet, verts, law, thickness=t)
-    r = fp.simulate(b.finalize(), 0.1, dt_out=0.002)
-    z = r.positions[:, sheet, 2]
-    assert z.min() > 0.0
-    assert np.median(z[-1]) == pytest.approx(t, abs=5e-5)
+    sheet = drop_sheet_on(b, verts)
+    assert_rests_at_contact_thickness(b.finalize(), sheet)
 
 
 def test_rigid_mesh_bad_input():

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import flexparcel as fp
+from conftest import assert_rests_at_contact_thickness, drop_sheet_on
 from flexparcel.contact.law import ContactLaw
 from flexparcel.elements.solid import SolidMaterial
 
@@ -78,25 +79,11 @@ def test_sheet_rests_on_a_solid_block():
     # packaging on flexible content: a sheet falls 5 mm onto a clamped hex block's top face
     # (boundary faces of the solid mesh are contact faces) and rests one contact thickness
     # above it
-    t = 0.3e-3
     pts, cells = _hex_bar(0.1, 5, 0.1, 0.02, z0=-0.02)
     pts[:, 0] -= 0.05
     pts[:, 1] -= 0.05
     b = fp.ModelBuilder()
     block = b.add_solid_mesh(pts, cells, "hex8", material=SolidMaterial(1e5, 0.3, 1000.0))
     b.fix(block, "translations")
-    sp, sq = fp.mesh.rectangle(0.06, 0.06, 6, 6, origin=(-0.03, -0.03, 0.005))
-    sheet = b.add_shell_mesh(sp, sq, material=fp.ShellMaterial(926e6, 0.1, 2424.0, t, 1.71e-3))
-    law = ContactLaw(
-        stiffness=1e4,
-        damping=0.5,
-        damping_option="indentation",
-        indentation_exponent=0.0,
-        mu_static=0.3,
-        mu_dynamic=0.3,
-    )
-    b.add_face_contact(sheet, block, law, thickness=t)
-    r = fp.simulate(b.finalize(), 0.1, dt_out=0.002)
-    z = r.positions[:, sheet, 2]
-    assert z.min() > 0.0
-    assert np.median(z[-1]) == pytest.approx(t, abs=5e-5)
+    sheet = drop_sheet_on(b, block)
+    assert_rests_at_contact_thickness(b.finalize(), sheet)
