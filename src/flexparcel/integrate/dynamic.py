@@ -215,10 +215,6 @@ class GeneralizedAlpha:
             inertia += asm.rigid_inertial_moments(m, s1.rotations, qdd[:, 3:], v1[:, 3:])
         return inertia + fint - asm.external_forces(m, t1, s1.rotations) - fc
 
-    def _last_residual(self, s1, qdd, v1, fc, t1):
-        fint, _ = asm.internal_forces(self.model, s1.positions, s1.rotations, v1)
-        return self._nodal_residual(s1, qdd, v1, fint, fc, t1)
-
     def _contact(self, s: State, t: float):
         """Contact forces (n, 6) on the nodes, per-point derivative blocks (P, 6, 6) of plane
         contacts; the (node, box) pairs' derivative blocks are kept for the tangent."""
@@ -442,6 +438,7 @@ class GeneralizedAlpha:
             else:
                 fint, _ = asm.internal_forces(m, s1.positions, s1.rotations, v1)
                 self.stats.wall_s["residual"] += _time.perf_counter() - t0
+            res_nodal = self._nodal_residual(s1, qdd, v1, fint, fc, t1)
             if self._factor_h != h:
                 t0 = _time.perf_counter()
                 dk, dc = self._tangent
@@ -472,7 +469,7 @@ class GeneralizedAlpha:
                     if box_mat is not None:
                         mat = mat + box_mat
                 if t_red is not None:
-                    r_link = asm.free_vector(m, self._last_residual(s1, qdd, v1, fc, t1))
+                    r_link = asm.free_vector(m, res_nodal)
                     mat = t_red.T @ mat @ t_red + asm.link_geometric_stiffness(
                         m, r_link, s1.rotations, t_red
                     )
@@ -485,7 +482,7 @@ class GeneralizedAlpha:
                 if not krylov and not self._factor(self._mat):
                     return None
                 self.stats.wall_s["factor"] += _time.perf_counter() - t0
-            r = asm.free_vector(m, self._nodal_residual(s1, qdd, v1, fint, fc, t1))
+            r = asm.free_vector(m, res_nodal)
             if t_red is not None:
                 r = t_red.T @ r
             if not np.all(np.isfinite(r)):

@@ -46,10 +46,6 @@ def apply_increment(model: Model, state: State, dq_free: np.ndarray) -> None:
         asm.project_slaves(model, state.positions, state.rotations)
 
 
-def _rotation_vectors(rot: np.ndarray) -> np.ndarray:
-    return rotation_vectors(rot)
-
-
 def solve_static(
     model: Model,
     load_steps: int = 10,
@@ -100,7 +96,7 @@ def solve_static(
         factors.append(lam)
         states.append(state.copy())
     disp = np.array([s.positions - model.positions0 for s in states])
-    rv = np.array([_rotation_vectors(s.rotations) for s in states])
+    rv = np.array([rotation_vectors(s.rotations) for s in states])
     return StaticResult(np.array(factors), disp, rv, states, total_iter)
 
 
