@@ -19,6 +19,21 @@ def _box_on_plane(law, *, gravity, z0, surface_velocity=(0.0, 0.0, 0.0), mass=0.
     return b.finalize(), node
 
 
+def _linear_law(mu_s, mu_d, **extra):
+    """Linear spring 1e5 N/m per corner with constant damping 20 N s/m (zeta ~ 0.2 per corner;
+    resting penetrations are microns, where the STEP option would give almost no damping and
+    the box would chatter) and friction mu_s / mu_d."""
+    return ContactLaw(
+        stiffness=1e5,
+        damping=20.0,
+        damping_option="indentation",
+        indentation_exponent=0.0,
+        mu_static=mu_s,
+        mu_dynamic=mu_d,
+        **extra,
+    )
+
+
 @pytest.mark.parametrize("zeta", [0.1, 0.3])
 def test_impact_restitution_matches_linear_spring_dashpot(zeta):
     # Linear spring c and constant damping d (indentation option, m_d = 1, m_i = 0), R_df = 0:
@@ -52,16 +67,7 @@ def test_impact_restitution_matches_linear_spring_dashpot(zeta):
 def _incline(theta_deg, mu_s, mu_d, t_end):
     # gravity tilted by theta instead of the plane: the same physics, corners stay in the plane
     th = np.radians(theta_deg)
-    # constant normal damping (zeta ~ 0.2 per corner): resting penetrations are only microns,
-    # where the STEP damping option would be almost zero and the box would chatter
-    law = ContactLaw(
-        stiffness=1e5,
-        damping=20.0,
-        damping_option="indentation",
-        indentation_exponent=0.0,
-        mu_static=mu_s,
-        mu_dynamic=mu_d,
-    )
+    law = _linear_law(mu_s, mu_d)
     model, node = _box_on_plane(
         law, gravity=(G * np.sin(th), 0.0, -G * np.cos(th)), z0=0.01 - 0.1 * G * np.cos(th) / 4e5
     )
@@ -85,14 +91,7 @@ def test_incline_sticks_below_and_slides_above_the_friction_angle():
 def test_box_dropped_on_belt_reaches_belt_speed():
     # t = v / (mu g), slip s = v^2 / (2 mu g) (mu_s = mu_d = mu), within 2 %
     mu, vb = 0.5, 1.6
-    law = ContactLaw(
-        stiffness=1e5,
-        damping=20.0,
-        damping_option="indentation",
-        indentation_exponent=0.0,
-        mu_static=mu,
-        mu_dynamic=mu,
-    )
+    law = _linear_law(mu, mu)
     model, node = _box_on_plane(
         law, gravity=(0, 0, -G), z0=0.01 - 0.1 * G / 4e5, surface_velocity=(vb, 0.0, 0.0)
     )
@@ -186,22 +185,8 @@ def test_box_pushed_by_belt_along_a_fence():
     # its normal force N). The approach is exponential with a time constant ~|v_b - v|/(mu g)
     # ~ 0.25 s: within 2 % after 1.5 s.
     vb, th, mu_f = 1.6, np.radians(45.0), 0.3
-    belt_law = ContactLaw(
-        stiffness=1e5,
-        damping=20.0,
-        damping_option="indentation",
-        indentation_exponent=0.0,
-        mu_static=0.5,
-        mu_dynamic=0.5,
-    )
-    fence_law = ContactLaw(
-        stiffness=1e5,
-        damping=20.0,
-        damping_option="indentation",
-        indentation_exponent=0.0,
-        mu_static=mu_f,
-        mu_dynamic=mu_f,
-    )
+    belt_law = _linear_law(0.5, 0.5)
+    fence_law = _linear_law(mu_f, mu_f)
     b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
     node = b.add_rigid_body(
         RoundedBox(0.1, 0.08, 0.02, 0.002, mass=0.1), (0.0, -0.02, 0.01 - 0.1 * G / 4e5)
@@ -224,15 +209,7 @@ def test_stick_model_holds_on_incline_and_lets_slide_above(theta_deg):
     # g (sin - mu_d cos) (1 %).
     th = np.radians(theta_deg)
     mu_s, mu_d, kt, m = 0.4, 0.3, 1e4, 0.1
-    law = ContactLaw(
-        stiffness=1e5,
-        damping=20.0,
-        damping_option="indentation",
-        indentation_exponent=0.0,
-        mu_static=mu_s,
-        mu_dynamic=mu_d,
-        stick_stiffness=kt,
-    )
+    law = _linear_law(mu_s, mu_d, stick_stiffness=kt)
     model, node = _box_on_plane(
         law,
         gravity=(G * np.sin(th), 0.0, -G * np.cos(th)),

@@ -6,6 +6,7 @@ from scipy.signal import find_peaks
 
 import flexparcel as fp
 from conftest import strip_model
+from flexparcel.scenarios.sheet_swing import SheetSwing, sheet_swing_model
 
 # Strip of Sze case 3.1 with rho chosen so that f1 = 10.00 Hz (omega1 = 62.83 rad/s).
 L, B, H, RHO = 10.0, 1.0, 0.1, 3.1314e-4
@@ -71,25 +72,18 @@ def test_rayleigh_damping_decay_of_first_mode():
     assert zeta_measured == pytest.approx(zeta, rel=3e-2)
 
 
+def _paper_sheet(nx):
+    """The benchmark sheet (flexparcel.scenarios.sheet_swing) on a coarse nx-wide mesh."""
+    return sheet_swing_model(SheetSwing(element_size=0.275 / nx))
+
+
 def _swing_tip(dt, nx=6, t_end=0.12):
     # the paper's sheet, coarse: a genuinely nonlinear swing under gravity
-    length, width, t = 0.275, 0.2, 0.3e-3
-    b, tip, pts = strip_model(
-        length,
-        width,
-        t,
-        nx,
-        2,
-        e=926e6,
-        nu=0.1,
-        rho=0.040 / (length * width * t),
-        beta=1.71e-3,
-        gravity=(0.0, 0.0, -9.81),
-    )
+    model, tip = _paper_sheet(nx)
     opt = fp.IntegratorOptions(
         adaptive=False, dt_initial=dt, dt_max=1.0, tol_displacement=1e-9, reuse_factorization=False
     )
-    r = fp.simulate(b.finalize(), t_end, dt_out=t_end, options=opt)
+    r = fp.simulate(model, t_end, dt_out=t_end, options=opt)
     return r.positions[-1, tip].mean(axis=0)
 
 
@@ -106,20 +100,8 @@ def test_time_step_convergence_second_order():
 def test_adaptive_run_matches_fine_fixed_step():
     # the default adaptive controller (local error tol 2e-5 m per step) lands within 1 mm of a
     # fine fixed-step run after 0.12 s of swing (errors accumulate over ~50 steps)
-    length, width, t = 0.275, 0.2, 0.3e-3
-    b, tip, _ = strip_model(
-        length,
-        width,
-        t,
-        6,
-        2,
-        e=926e6,
-        nu=0.1,
-        rho=0.040 / (length * width * t),
-        beta=1.71e-3,
-        gravity=(0.0, 0.0, -9.81),
-    )
-    r = fp.simulate(b.finalize(), 0.12, dt_out=0.12)
+    model, tip = _paper_sheet(6)
+    r = fp.simulate(model, 0.12, dt_out=0.12)
     ref = _swing_tip(1.25e-4)
     assert np.linalg.norm(r.positions[-1, tip].mean(axis=0) - ref) < 1e-3
     assert r.stats["rejected_steps"] <= r.stats["steps"]
@@ -138,20 +120,7 @@ def test_divergence_raises_clear_error_not_nan():
 def test_krylov_reuse_option_gives_the_same_motion():
     # GMRES preconditioned with an earlier factorisation solves the same Newton systems to
     # rtol 1e-6: the trajectory agrees with direct solves to well within the step tolerance
-    length, width, t = 0.275, 0.2, 0.3e-3
-    b, tip, _ = strip_model(
-        length,
-        width,
-        t,
-        6,
-        2,
-        e=926e6,
-        nu=0.1,
-        rho=0.040 / (length * width * t),
-        beta=1.71e-3,
-        gravity=(0.0, 0.0, -9.81),
-    )
-    model = b.finalize()
+    model, tip = _paper_sheet(6)
     r0 = fp.simulate(model, 0.1, dt_out=0.1)
     r1 = fp.simulate(model, 0.1, dt_out=0.1, options=fp.IntegratorOptions(krylov_reuse=True))
     assert r1.stats["krylov_iterations"] > 0

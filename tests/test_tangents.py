@@ -34,6 +34,26 @@ def _forces(tris, kl, xloc, frames, beta, x, rot, vel):
     return out.ravel()
 
 
+def _fd_wrt_nodes(func, x, rot):
+    """Central differences of func(x, rot) (an array) with respect to the 18 triangle DOFs:
+    node translations and spatial spins R -> exp(+-eps e_i) R; shape (func size, 18)."""
+    cols = []
+    for a in range(3):
+        for kind in ("x", "spin"):
+            for i in range(3):
+                xp, xm, rp, rm = x.copy(), x.copy(), rot.copy(), rot.copy()
+                if kind == "x":
+                    xp[a, i] += EPS
+                    xm[a, i] -= EPS
+                else:
+                    e = np.zeros(3)
+                    e[i] = EPS
+                    rp[a] = rotation_exp(e) @ rot[a]
+                    rm[a] = rotation_exp(-e) @ rot[a]
+                cols.append((np.atleast_1d(func(xp, rp)) - np.atleast_1d(func(xm, rm))) / (2 * EPS))
+    return np.column_stack(cols)
+
+
 def test_shell_force_is_gradient_of_strain_energy():
     frames, xloc, kl, x, rot, _ = _random_triangle_state(0)
     tris = np.array([[0, 1, 2]])
@@ -46,19 +66,7 @@ def test_shell_force_is_gradient_of_strain_energy():
             tris, kl, xloc, frames, np.zeros(1), xx, rr, zero, np.zeros((3, 6))
         )
 
-    g = np.zeros(18)
-    for a in range(3):
-        for i in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[a, i] += EPS
-            xm[a, i] -= EPS
-            g[6 * a + i] = (energy(xp, rot) - energy(xm, rot)) / (2 * EPS)
-            e = np.zeros(3)
-            e[i] = EPS
-            rp, rm = rot.copy(), rot.copy()
-            rp[a] = rotation_exp(e) @ rot[a]
-            rm[a] = rotation_exp(-e) @ rot[a]
-            g[6 * a + 3 + i] = (energy(x, rp) - energy(x, rm)) / (2 * EPS)
+    g = _fd_wrt_nodes(energy, x, rot)[0]
     assert np.abs(out.ravel() - g).max() <= RTOL * np.abs(g).max()
 
 
@@ -73,33 +81,16 @@ def test_shell_stiffness_and_damping_tangents_match_finite_differences():
     )
     k = dk[:324].reshape(18, 18)
     c = dc[:324].reshape(18, 18)
-    kfd, cfd = np.zeros((18, 18)), np.zeros((18, 18))
-    for a in range(3):
-        for i in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[a, i] += EPS
-            xm[a, i] -= EPS
-            kfd[:, 6 * a + i] = (
-                _forces(tris, kl, xloc, frames, beta, xp, rot, vel)
-                - _forces(tris, kl, xloc, frames, beta, xm, rot, vel)
-            ) / (2 * EPS)
-            e = np.zeros(3)
-            e[i] = EPS
-            rp, rm = rot.copy(), rot.copy()
-            rp[a] = rotation_exp(e) @ rot[a]
-            rm[a] = rotation_exp(-e) @ rot[a]
-            kfd[:, 6 * a + 3 + i] = (
-                _forces(tris, kl, xloc, frames, beta, x, rp, vel)
-                - _forces(tris, kl, xloc, frames, beta, x, rm, vel)
-            ) / (2 * EPS)
-        for j in range(6):
-            vp, vm = vel.copy(), vel.copy()
-            vp[a, j] += EPS
-            vm[a, j] -= EPS
-            cfd[:, 6 * a + j] = (
-                _forces(tris, kl, xloc, frames, beta, x, rot, vp)
-                - _forces(tris, kl, xloc, frames, beta, x, rot, vm)
-            ) / (2 * EPS)
+    kfd = _fd_wrt_nodes(lambda xx, rr: _forces(tris, kl, xloc, frames, beta, xx, rr, vel), x, rot)
+    cfd = np.zeros((18, 18))
+    for j in range(18):
+        vp, vm = vel.copy(), vel.copy()
+        vp.ravel()[j] += EPS
+        vm.ravel()[j] -= EPS
+        cfd[:, j] = (
+            _forces(tris, kl, xloc, frames, beta, x, rot, vp)
+            - _forces(tris, kl, xloc, frames, beta, x, rot, vm)
+        ) / (2 * EPS)
     assert np.abs(k - kfd).max() <= RTOL * np.abs(kfd).max()
     assert np.abs(c - cfd).max() <= RTOL * np.abs(cfd).max()
 
