@@ -125,3 +125,14 @@ def test_krylov_reuse_option_gives_the_same_motion():
     r1 = fp.simulate(model, 0.1, dt_out=0.1, options=fp.IntegratorOptions(krylov_reuse=True))
     assert r1.stats["krylov_iterations"] > 0
     assert np.abs(r1.positions[-1] - r0.positions[-1]).max() < 1e-4
+
+
+def test_pardiso_backend_gives_the_same_motion():
+    # optional backend (pip install pypardiso): same Newton systems, same trajectory
+    pytest.importorskip("pypardiso")
+    model, _ = _paper_sheet(6)
+    r0 = fp.simulate(model, 0.05, dt_out=0.05)
+    r1 = fp.simulate(
+        model, 0.05, dt_out=0.05, options=fp.IntegratorOptions(linear_solver="pardiso")
+    )
+    assert np.abs(r1.positions[-1] - r0.positions[-1]).max() < 1e-8
