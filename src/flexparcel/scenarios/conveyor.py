@@ -1,0 +1,286 @@
+"""Conveyor scene of the paper's bulk run (section 4.4, Fig. 35): a belt at 1.6 m/s and two
+fixed 45 deg deflectors reaching almost to the belt centre line, from alternating sides.
+
+World frame: the belt runs along +x from x = 0 to x = ``belt_length``, its surface is z = 0,
+its centre line is y = 0, it spans |y| <= ``belt_width`` / 2. Deflector k starts at the belt
+edge (its *root*, at x = ``deflector_x[k]``) and runs downstream at ``deflector_angle_deg`` to
+the belt direction until its *tip*, ``centre_gap`` short of the centre line. The first
+deflector comes from the y > 0 side, the next from y < 0, and so on.
+
+Modelling choices (they differ from the paper, which uses a shell belt on driven rollers):
+
+* the belt is a rigid plane with a prescribed surface velocity (``ModelBuilder.add_plane``).
+  The plane is unbounded: nothing falls off at x = ``belt_length``; the responses
+  (:mod:`flexparcel.scenarios.conveyor_responses`) report when a consignment passes it.
+* each deflector is a fixed rigid body carrying a triangle mesh of its upstream face (a
+  vertical rectangle). Only *shell nodes* can touch a triangle mesh in flexparcel
+  (``add_face_contact``); a rigid box content cannot. For a rigid box use a plane through
+  :attr:`DeflectorGeometry.point` with :attr:`DeflectorGeometry.normal`, which is unbounded
+  (it goes on past the tip and through the other half of the belt), so it is only right while
+  the box is alongside the deflector.
+* side guides, when asked for, are unbounded planes at the belt edges.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flexparcel.model.builder import ModelBuilder
+from flexparcel.model.rigid import RoundedBox
+
+__all__ = ["ConveyorScene", "DeflectorGeometry", "ConveyorParts", "add_conveyor"]
+
+# Steel density [kg/m^3]: the fixed deflector bodies get a plausible mass (it never matters
+# for a fixed body, but a RoundedBox needs one).
+_STEEL_DENSITY = 7850.0
+
+
+def _bad(name: str, allowed: str, value: object) -> ValueError:
+    return ValueError(f"ConveyorScene.{name} must be {allowed}, got {value!r}")
+
+
+def _number(name: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+        raise _bad(name, "a number", value)
+    v = float(value)
+    if not math.isfinite(v):
+        raise _bad(name, "finite", value)
+    return v
+
+
+@dataclass(frozen=True, eq=False)
+class DeflectorGeometry:
+    """The upstream face of one deflector: a vertical rectangle (SI units).
+
+    The face spans ``root + a * tangent + b * e_z`` for ``0 <= a <= length``,
+    ``0 <= b <= height``.
+    """
+
+    root: np.ndarray
+    """Bottom corner at the belt edge [m], shape (3,)."""
+    tangent: np.ndarray
+    """Unit vector from the root towards the tip, horizontal, shape (3,)."""
+    normal: np.ndarray
+    """Unit normal of the face, horizontal, pointing to the upstream side (where consignments
+    come from), shape (3,)."""
+    length: float
+    """Length of the face along ``tangent`` [m]."""
+    height: float
+    """Height of the face [m]."""
+
+    def __post_init__(self) -> None:
+        for name in ("root", "tangent", "normal"):
+            v = np.array(getattr(self, name), dtype=float)  # a private, read-only copy
+            v.flags.writeable = False
+            object.__setattr__(self, name, v)
+
+    @property
+    def point(self) -> np.ndarray:
+        """A point on the face [m], shape (3,) (the root)."""
+        return self.root
+
+    @property
+    def tip(self) -> np.ndarray:
+        """Bottom corner near the belt centre line [m], shape (3,)."""
+        return self.root + self.length * self.tangent
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Distance [m] from ``points`` [m], shape (..., 3), to the face rectangle (not the
+        unbounded plane), shape (...)."""
+        d = np.asarray(points, dtype=float) - self.root
+        a = np.clip(d @ self.tangent, 0.0, self.length)
+        b = np.clip(d[..., 2], 0.0, self.height)
+        closest = a[..., None] * self.tangent + b[..., None] * np.array([0.0, 0.0, 1.0])
+        return np.linalg.norm(d - closest, axis=-1)
+
+    def to_dict(self) -> dict:
+        """JSON-ready copy (lists of floats)."""
+        return {
+            "root": self.root.tolist(),
+            "tip": self.tip.tolist(),
+            "tangent": self.tangent.tolist(),
+            "normal": self.normal.tolist(),
+            "length": float(self.length),
+            "height": float(self.height),
+        }
+
+
+@dataclass(frozen=True)
+class ConveyorScene:
+    """Belt and deflectors (SI units; angles in degrees), validated on creation.
+
+    Attributes:
+        belt_length: [m] in (0, 50]; consignments exit at x = belt_length.
+        belt_width: [m] in (0, 5].
+        belt_speed: surface speed along +x [m/s] in [0, 10] (paper: 1.6).
+        deflector_angle_deg: angle between each deflector and the belt direction [deg] in
+            [10, 90] (paper: 45); below 10 deg the deflectors get impractically long.
+        deflector_x: x of each deflector's root at the belt edge [m], increasing, each >= 0,
+            each tip at most at x = belt_length. Our choice; the paper gives no positions.
+        centre_gap: distance of each tip from the belt centre line [m] in [0, belt_width / 2).
+        deflector_height: [m] in (0, 1].
+        deflector_thickness: steel sheet thickness [m] in (0, 0.05]; only the fixed body's
+            mass depends on it (the contact face is the upstream face).
+        side_guides: add unbounded guide planes along both belt edges.
+    """
+
+    belt_length: float = 3.0
+    belt_width: float = 0.6
+    belt_speed: float = 1.6
+    deflector_angle_deg: float = 45.0
+    deflector_x: tuple[float, ...] = (0.8, 1.7)
+    centre_gap: float = 0.03
+    deflector_height: float = 0.1
+    deflector_thickness: float = 0.002
+    side_guides: bool = False
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "belt_length": ("in (0, 50] m", lambda v: 0.0 < v <= 50.0),
+            "belt_width": ("in (0, 5] m", lambda v: 0.0 < v <= 5.0),
+            "belt_speed": ("in [0, 10] m/s", lambda v: 0.0 <= v <= 10.0),
+            "deflector_angle_deg": ("in [10, 90] deg", lambda v: 10.0 <= v <= 90.0),
+            "deflector_height": ("in (0, 1] m", lambda v: 0.0 < v <= 1.0),
+            "deflector_thickness": ("in (0, 0.05] m", lambda v: 0.0 < v <= 0.05),
+        }
+        for name, (allowed, ok) in ranges.items():
+            v = _number(name, getattr(self, name))
+            if not ok(v):
+                raise _bad(name, allowed, v)
+            object.__setattr__(self, name, v)
+        half = 0.5 * self.belt_width
+        gap = _number("centre_gap", self.centre_gap)
+        if not 0.0 <= gap < half:
+            raise _bad("centre_gap", f"in [0, belt_width / 2 = {half:g}) m", gap)
+        object.__setattr__(self, "centre_gap", gap)
+        if not isinstance(self.side_guides, bool):
+            raise _bad("side_guides", "True or False", self.side_guides)
+        try:
+            xs = tuple(_number("deflector_x", x) for x in self.deflector_x)
+        except TypeError:
+            raise _bad("deflector_x", "a sequence of numbers [m]", self.deflector_x) from None
+        reach = self.deflector_reach_x
+        for k, x in enumerate(xs):
+            if not 0.0 <= x <= self.belt_length - reach:
+                raise _bad(
+                    f"deflector_x[{k}]",
+                    f"in [0, belt_length - {reach:.4g} = {self.belt_length - reach:.4g}] m "
+                    "(its tip must stay on the belt)",
+                    x,
+                )
+            if k and not x > xs[k - 1]:
+                raise _bad(f"deflector_x[{k}]", f"> deflector_x[{k - 1}] = {xs[k - 1]:g} m", x)
+        object.__setattr__(self, "deflector_x", xs)
+
+    @property
+    def deflector_reach_x(self) -> float:
+        """Extent of each deflector along the belt, root to tip [m]."""
+        span = 0.5 * self.belt_width - self.centre_gap
+        return span / math.tan(math.radians(self.deflector_angle_deg))
+
+    def deflectors(self) -> tuple[DeflectorGeometry, ...]:
+        """Geometry of each deflector's upstream face, in ``deflector_x`` order."""
+        th = math.radians(self.deflector_angle_deg)
+        span = 0.5 * self.belt_width - self.centre_gap
+        out = []
+        for k, x in enumerate(self.deflector_x):
+            side = 1.0 if k % 2 == 0 else -1.0  # y > 0 first, then alternate
+            # runs downstream (+x) and towards the centre line (-side in y)
+            tangent = np.array([math.cos(th), -side * math.sin(th), 0.0])
+            # of the two horizontal normals, the one with a negative x component faces the
+            # oncoming consignments
+            normal = np.array([-math.sin(th), -side * math.cos(th), 0.0])
+            out.append(
+                DeflectorGeometry(
+                    root=np.array([x, side * 0.5 * self.belt_width, 0.0]),
+                    tangent=tangent,
+                    normal=normal,
+                    length=span / math.sin(th),
+                    height=self.deflector_height,
+                )
+            )
+        return tuple(out)
+
+
+@dataclass(frozen=True, eq=False)
+class ConveyorParts:
+    """What :func:`add_conveyor` added to a builder."""
+
+    scene: ConveyorScene
+    belt_plane: int
+    """Plane id of the belt (for ``add_contact`` / ``add_edge_contact``)."""
+    deflector_bodies: tuple[int, ...]
+    """Node id of each deflector's fixed rigid body. Its RoundedBox is axis-aligned and only
+    carries the mesh: never use it in ``add_body_contact``."""
+    deflector_vertices: tuple[np.ndarray, ...]
+    """Node ids of each deflector's face-mesh vertices (``face_node_ids`` of
+    ``add_face_contact``), shape (v,) each."""
+    deflectors: tuple[DeflectorGeometry, ...]
+    side_guide_planes: tuple[int, ...] = field(default=())
+    """Plane ids of the guides at y = +width/2 and y = -width/2, or () if none."""
+
+
+def _face_mesh(g: DeflectorGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (2 (n + 1), 3) [m] and triangles (2 n, 3) of a strip of n near-square cells
+    over the face, counter-clockwise seen from the upstream side. Face contact takes the
+    closest point on a triangle, so a flat face needs few triangles; cells about as long as
+    the face is high keep them well shaped."""
+    n = max(1, math.ceil(g.length / g.height))
+    a = np.linspace(0.0, g.length, n + 1)
+    bottom = g.root + a[:, None] * g.tangent
+    top = bottom + np.array([0.0, 0.0, g.height])
+    pts = np.vstack([bottom, top])  # bottom i, top n + 1 + i
+    i = np.arange(n)
+    quads = np.column_stack([i, i + 1, n + 2 + i, n + 1 + i])
+    tris = np.vstack([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    # orient the triangles so that their right-hand normal is the upstream normal
+    p = pts[tris[0]]
+    if np.cross(p[1] - p[0], p[2] - p[0]) @ g.normal < 0.0:
+        tris = tris[:, [0, 2, 1]]
+    return pts, tris.astype(np.int64)
+
+
+def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> ConveyorParts:
+    """Add the belt, the deflectors and (optionally) the side guides of ``scene`` (default
+    :class:`ConveyorScene`) to ``builder``; returns their ids and geometry.
+
+    Contact pairs are left to the caller, who knows the consignments and their laws:
+    ``builder.add_contact(nodes, parts.belt_plane, law, radius=t / 2)`` for the belt,
+    ``builder.add_face_contact(nodes, parts.deflector_vertices[k], law, thickness=t / 2)`` for
+    shell nodes against deflector k.
+    """
+    scene = scene if scene is not None else ConveyorScene()
+    if not isinstance(scene, ConveyorScene):
+        raise TypeError(f"add_conveyor: scene must be a ConveyorScene, got {type(scene)}")
+    belt = builder.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (scene.belt_speed, 0.0, 0.0))
+    bodies, vertices = [], []
+    geometry = scene.deflectors()
+    for g in geometry:
+        pts, tris = _face_mesh(g)
+        t, h = scene.deflector_thickness, g.height
+        centre = g.root + 0.5 * g.length * g.tangent + np.array([0.0, 0.0, 0.5 * h])
+        # a sheet-thick column at the face centre with the sheet's mass: a RoundedBox cannot be
+        # turned to the deflector angle at build time, and a fixed body's shape only matters
+        # for body contact, which the deflector does not use
+        shape = RoundedBox(t, t, h, mass=_STEEL_DENSITY * g.length * t * h)
+        body = builder.add_rigid_body(shape, tuple(centre), motion="fixed")
+        bodies.append(body)
+        vertices.append(builder.add_rigid_mesh(pts, tris, body))
+    guides: tuple[int, ...] = ()
+    if scene.side_guides:
+        half = 0.5 * scene.belt_width
+        guides = (
+            builder.add_plane((0.0, half, 0.0), (0.0, -1.0, 0.0)),
+            builder.add_plane((0.0, -half, 0.0), (0.0, 1.0, 0.0)),
+        )
+    return ConveyorParts(
+        scene=scene,
+        belt_plane=belt,
+        deflector_bodies=tuple(bodies),
+        deflector_vertices=tuple(vertices),
+        deflectors=geometry,
+        side_guide_planes=guides,
+    )
