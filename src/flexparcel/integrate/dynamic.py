@@ -150,6 +150,14 @@ class GeneralizedAlpha:
         self._contact_info = (0, 0.0, -1, 0.0)
         self._coupled_blocks = []
         self._face_cands = []
+        # node pairs that share a shell element (keys a * n + b), for the self-contact filter
+        if model.face_sets and model.triangles.size:
+            t = model.triangles
+            a = np.concatenate([t[:, 0], t[:, 1], t[:, 2], t[:, 1], t[:, 2], t[:, 0]])
+            b = np.concatenate([t[:, 1], t[:, 2], t[:, 0], t[:, 0], t[:, 1], t[:, 2]])
+            self._adjacent_keys = np.unique(a * model.node_count + b)
+        else:
+            self._adjacent_keys = np.zeros(0, np.int64)
         self._impact_w2 = 0.0
         self._u_el = np.zeros((model.cp_node.size, 3))  # stick-model history per contact point
         self._u_el_trial = self._u_el.copy()
@@ -211,6 +219,8 @@ class GeneralizedAlpha:
         """M qdd + f_int - f_ext - f_contact per node (n, 6)."""
         m = self.model
         inertia = m.mass * qdd
+        if m.mass_damping:
+            inertia += m.mass_damping * m.mass * v1
         if m.rigid_nodes.size:
             inertia += asm.rigid_inertial_moments(m, s1.rotations, qdd[:, 3:], v1[:, 3:])
         return inertia + fint - asm.external_forces(m, t1, s1.rotations) - fc
@@ -311,6 +321,14 @@ class GeneralizedAlpha:
             pairs = point_triangle_candidates(
                 s0.positions[nodes], thick, tris, s0.positions, thick + reach, point_node=nodes
             )
+            if pairs.size and self._adjacent_keys.size:
+                # a node never touches a face next to it in its own mesh: it lies on the
+                # extension of such a face (a shared border of two layers, a fold), at zero
+                # distance, which would read as a full-depth penetration
+                corner = tris[pairs[:, 1]]
+                keys = nodes[pairs[:, 0], None] * m.node_count + corner
+                near = np.isin(keys, self._adjacent_keys).any(axis=1)
+                pairs = pairs[~near]
             sides = face_sides(pairs, nodes, tris, s0.positions)
             self._face_cands.append((pairs, sides))
 
@@ -452,7 +470,11 @@ class GeneralizedAlpha:
                     self._add_contact_tangent(data, cdq, cdv, cv)
                     mat = (
                         asm.csr_from_data(m, data)
-                        + (cv * asm.csr_from_data(m, dc) + sp.diags(ca * self._mfree)) @ tmap
+                        + (
+                            cv * asm.csr_from_data(m, dc)
+                            + sp.diags((ca + cv * m.mass_damping) * self._mfree)
+                        )
+                        @ tmap
                     )
                     box_mat = self._box_contact_matrix(cv)
                     if box_mat is not None:
@@ -461,7 +483,7 @@ class GeneralizedAlpha:
                     # the material tangent is approximate anyway; without the O(|Theta|)
                     # increment map it stays symmetric and is assembled in place
                     data += cv * dc
-                    data[m.diag_slots] += ca * self._mfree
+                    data[m.diag_slots] += (ca + cv * m.mass_damping) * self._mfree
                     asm.add_rigid_inertia_tangent(m, data, s1.rotations, v1[:, 3:], ca, cv)
                     self._add_contact_tangent(data, cdq, cdv, cv)
                     mat = asm.csr_from_data(m, data)

@@ -133,6 +133,10 @@ class Model:
     """Master node of each slave (always a root master), shape (s,)."""
     slave_offset: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """Offset of each slave from its master in the master's body frame [m], shape (s, 3)."""
+    mass_damping: float = 0.0
+    """Mass-proportional (Rayleigh alpha) damping [1/s]: a force -alpha M v on every node.
+    Not a material property: an aid that brings assembly and settling runs to rest quickly
+    (it also damps rigid motion), 0 for the tests themselves."""
 
     @property
     def node_count(self) -> int:
@@ -212,6 +216,8 @@ class ModelBuilder:
 
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     gravity_schedule: Schedule = field(default_factory=Schedule.constant)
+    mass_damping: float = 0.0
+    """Rayleigh alpha [1/s] (see :attr:`Model.mass_damping`); >= 0."""
     _points: list[np.ndarray] = field(default_factory=list, repr=False)
     _tris: list[np.ndarray] = field(default_factory=list, repr=False)
     _tri_w: list[np.ndarray] = field(default_factory=list, repr=False)
@@ -235,6 +241,9 @@ class ModelBuilder:
         if g.shape != (3,) or not np.all(np.isfinite(g)):
             raise ValueError(f"ModelBuilder.gravity must be 3 finite numbers [m/s^2], got {g!r}")
         self.gravity = tuple(g)
+        a = self.mass_damping
+        if not (isinstance(a, int | float) and np.isfinite(a) and a >= 0.0):
+            raise ValueError(f"ModelBuilder.mass_damping must be >= 0 1/s, got {a!r}")
 
     @property
     def node_count(self) -> int:
@@ -264,80 +273,47 @@ class ModelBuilder:
             raise ValueError(f"add_shell_mesh: points[{bad[0]}] is not finite: {pts[bad[0]]}")
         if quads is None and triangles is None:
             raise ValueError("add_shell_mesh: give quads and/or triangles")
+        cells, tri, w = _shell_cells("add_shell_mesh", pts, quads, triangles)
         n = len(pts)
-        cells = []
-        tri_all, w_all = [], []
-        for name, conn, k in (("quads", quads, 4), ("triangles", triangles, 3)):
-            if conn is None:
-                continue
-            c = np.asarray(conn)
-            if c.ndim != 2 or c.shape[1] != k or c.shape[0] == 0:
-                raise ValueError(
-                    f"add_shell_mesh: {name} must have shape (m>=1, {k}), got {c.shape}"
-                )
-            if not np.issubdtype(c.dtype, np.integer):
-                raise ValueError(f"add_shell_mesh: {name} must be integers, got {c.dtype}")
-            c = c.astype(np.int64)
-            out = np.flatnonzero(np.any((c < 0) | (c >= n), axis=1))
-            if out.size:
-                raise ValueError(
-                    f"add_shell_mesh: {name}[{out[0]}] = {c[out[0]].tolist()} has node ids "
-                    f"outside [0, {n - 1}]"
-                )
-            srt = np.sort(c, axis=1)
-            rep = np.flatnonzero(np.any(srt[:, 1:] == srt[:, :-1], axis=1))
-            if rep.size:
-                raise ValueError(
-                    f"add_shell_mesh: {name}[{rep[0]}] = {c[rep[0]].tolist()} repeats a node "
-                    "(degenerate element)"
-                )
-            _, first, counts = np.unique(srt, axis=0, return_index=True, return_counts=True)
-            if np.any(counts > 1):
-                i = first[np.argmax(counts > 1)]
-                raise ValueError(f"add_shell_mesh: {name}[{i}] = {c[i].tolist()} is duplicated")
-            if k == 4:
-                t, w = quads_to_triangles(c)
-                cells.append(("quad", c))
-            else:
-                t, w = c, np.ones(len(c))
-                cells.append(("triangle", c))
-            # degenerate check on every sub-triangle, relative to the element size
-            p = pts[t]
-            e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-            area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
-            h2 = np.maximum(np.sum(e1 * e1, axis=1), np.sum(e2 * e2, axis=1))
-            deg = np.flatnonzero(area2 <= 1e-8 * h2)
-            if deg.size:
-                j = deg[0] % len(c)
-                raise ValueError(
-                    f"add_shell_mesh: {name}[{j}] = {c[j].tolist()} is degenerate (zero area or "
-                    "collinear nodes); element areas must be > 0"
-                )
-            if k == 4:
-                # a convex, non-inverted quad has both diagonal splits oriented like the quad
-                m = len(c)
-                nrm = np.cross(e1, e2)
-                ref = nrm[:m] + nrm[m : 2 * m]
-                sgn = np.einsum("ij,kij->ki", ref, nrm.reshape(4, m, 3))
-                inv = np.flatnonzero(np.any(sgn <= 0, axis=0))
-                if inv.size:
-                    raise ValueError(
-                        f"add_shell_mesh: quads[{inv[0]}] = {c[inv[0]].tolist()} is inverted or "
-                        "non-convex (its corners must go counter-clockwise around a convex quad)"
-                    )
-            tri_all.append(t)
-            w_all.append(w)
-        tri = np.concatenate(tri_all)
-        _check_orientation([c for _, c in cells])
         ids = np.arange(self._node_count, self._node_count + n)
         self._points.append(pts)
         self._tris.append(tri + self._node_count)
-        self._tri_w.append(np.concatenate(w_all))
+        self._tri_w.append(w)
         self._tri_mat.append(material)
         for cname, c in cells:
             self._cells.setdefault(cname, []).append(c + self._node_count)
         self._node_count += n
         return ids
+
+    def add_shell_elements(
+        self,
+        quads: np.ndarray | None = None,
+        *,
+        material: ShellMaterial,
+        triangles: np.ndarray | None = None,
+    ) -> None:
+        """Add shell elements of another material on nodes that already exist (e.g. a glued
+        strip of doubled thickness along an envelope's border): ``quads`` (q, 4) and/or
+        ``triangles`` (t, 3) of global node ids, checked like :meth:`add_shell_mesh`."""
+        if not isinstance(material, ShellMaterial):
+            raise TypeError("add_shell_elements: material must be a ShellMaterial")
+        if quads is None and triangles is None:
+            raise ValueError("add_shell_elements: give quads and/or triangles")
+        conns = [np.asarray(c) for c in (quads, triangles) if c is not None]
+        used = np.unique(np.concatenate([c.ravel() for c in conns]))
+        self._check_ids("add_shell_elements", used)
+        if self._node_count:
+            allpts = np.concatenate(self._points)
+        local = {int(g): k for k, g in enumerate(used.tolist())}
+        relabel = np.vectorize(lambda g: local[int(g)], otypes=[np.int64])
+        q = relabel(np.asarray(quads)) if quads is not None else None
+        t = relabel(np.asarray(triangles)) if triangles is not None else None
+        cells, tri, w = _shell_cells("add_shell_elements", allpts[used], q, t)
+        self._tris.append(used[tri])
+        self._tri_w.append(w)
+        self._tri_mat.append(material)
+        for cname, c in cells:
+            self._cells.setdefault(cname, []).append(used[c])
 
     def add_solid_mesh(
         self, points: np.ndarray, cells: np.ndarray, kind: str, *, material
@@ -686,10 +662,18 @@ class ModelBuilder:
         for tri, w, mat in zip(self._tris, self._tri_w, self._tri_mat, strict=True):
             frames, xloc = shell.reference_frames(pos0, tri)
             kl = np.empty((len(tri), 18, 18))
-            for e in range(len(tri)):
-                kl[e] = w[e] * shell.local_stiffness(
-                    xloc[e], mat.youngs_modulus, mat.poisson_ratio, mat.thickness
-                )
+            # structured meshes repeat a few triangle shapes: compute each shape once (the
+            # local stiffness depends only on the local corner coordinates and the material)
+            shapes, first, which = np.unique(
+                np.round(xloc.reshape(len(tri), 6), 12), axis=0, return_index=True,
+                return_inverse=True,
+            )  # fmt: skip
+            k_shape = np.array([
+                shell.local_stiffness(xloc[e], mat.youngs_modulus, mat.poisson_ratio,
+                                      mat.thickness)
+                for e in first
+            ])  # fmt: skip
+            kl[:] = w[:, None, None] * k_shape[which.ravel()]
             area = 0.5 * np.abs(
                 (xloc[:, 1, 0] - xloc[:, 0, 0]) * (xloc[:, 2, 1] - xloc[:, 0, 1])
                 - (xloc[:, 2, 0] - xloc[:, 0, 0]) * (xloc[:, 1, 1] - xloc[:, 0, 1])
@@ -903,6 +887,7 @@ class ModelBuilder:
             slave_nodes=slave_nodes,
             slave_master=slave_master,
             slave_offset=slave_offset,
+            mass_damping=float(self.mass_damping),
         )
 
     def _resolve_slaves(self, pos0: np.ndarray, fixed: np.ndarray):
@@ -954,6 +939,74 @@ def _solid_boundary_triangles(solids: list, nodes: set) -> np.ndarray:
             if len(row) == 4:
                 out.append([row[0], row[2], row[3]])
     return np.asarray(out, dtype=np.int64).reshape(-1, 3)
+
+
+def _shell_cells(what: str, pts: np.ndarray, quads, triangles):
+    """Validate shell connectivity over ``pts``; returns (cells [(name, conn)], triangles
+    (m, 3), triangle weights (m,)) with quads split along both diagonals."""
+    n = len(pts)
+    cells = []
+    tri_all, w_all = [], []
+    for name, conn, k in (("quads", quads, 4), ("triangles", triangles, 3)):
+        if conn is None:
+            continue
+        c = np.asarray(conn)
+        if c.ndim != 2 or c.shape[1] != k or c.shape[0] == 0:
+            raise ValueError(f"{what}: {name} must have shape (m>=1, {k}), got {c.shape}")
+        if not np.issubdtype(c.dtype, np.integer):
+            raise ValueError(f"{what}: {name} must be integers, got {c.dtype}")
+        c = c.astype(np.int64)
+        out = np.flatnonzero(np.any((c < 0) | (c >= n), axis=1))
+        if out.size:
+            raise ValueError(
+                f"{what}: {name}[{out[0]}] = {c[out[0]].tolist()} has node ids outside [0, {n - 1}]"
+            )
+        srt = np.sort(c, axis=1)
+        rep = np.flatnonzero(np.any(srt[:, 1:] == srt[:, :-1], axis=1))
+        if rep.size:
+            raise ValueError(
+                f"{what}: {name}[{rep[0]}] = {c[rep[0]].tolist()} repeats a node "
+                "(degenerate element)"
+            )
+        _, first, counts = np.unique(srt, axis=0, return_index=True, return_counts=True)
+        if np.any(counts > 1):
+            i = first[np.argmax(counts > 1)]
+            raise ValueError(f"{what}: {name}[{i}] = {c[i].tolist()} is duplicated")
+        if k == 4:
+            t, w = quads_to_triangles(c)
+            cells.append(("quad", c))
+        else:
+            t, w = c, np.ones(len(c))
+            cells.append(("triangle", c))
+        # degenerate check on every sub-triangle, relative to the element size
+        p = pts[t]
+        e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+        area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+        h2 = np.maximum(np.sum(e1 * e1, axis=1), np.sum(e2 * e2, axis=1))
+        deg = np.flatnonzero(area2 <= 1e-8 * h2)
+        if deg.size:
+            j = deg[0] % len(c)
+            raise ValueError(
+                f"{what}: {name}[{j}] = {c[j].tolist()} is degenerate (zero area or "
+                "collinear nodes); element areas must be > 0"
+            )
+        if k == 4:
+            # a convex, non-inverted quad has both diagonal splits oriented like the quad
+            m = len(c)
+            nrm = np.cross(e1, e2)
+            ref = nrm[:m] + nrm[m : 2 * m]
+            sgn = np.einsum("ij,kij->ki", ref, nrm.reshape(4, m, 3))
+            inv = np.flatnonzero(np.any(sgn <= 0, axis=0))
+            if inv.size:
+                raise ValueError(
+                    f"{what}: quads[{inv[0]}] = {c[inv[0]].tolist()} is inverted or "
+                    "non-convex (its corners must go counter-clockwise around a convex quad)"
+                )
+        tri_all.append(t)
+        w_all.append(w)
+    tri = np.concatenate(tri_all)
+    _check_orientation([c for _, c in cells])
+    return cells, tri, np.concatenate(w_all)
 
 
 def _check_orientation(cells: list[np.ndarray]) -> None:

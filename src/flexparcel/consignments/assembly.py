@@ -1,0 +1,169 @@
+"""Assembly of a consignment as in the paper (section 3.1.3), ending in a snapshot.
+
+1. Opening: equal and opposite uniform forces pull the top layer up and the bottom layer down
+   (growing linearly in time) while the packaging-content contact is off; the content sits in
+   the almost flat packaging. Gravity is off during the whole assembly (the paper's assembly
+   does not rest on anything either), so the content does not move.
+2. As soon as the opening clears the content by ``margin`` on both sides (checked every
+   ``check_every`` s), the contact is switched on and the forces are released over
+   ``release_time``: the packaging closes around the content.
+3. Settling: with mass-proportional damping (an assembly aid, :attr:`Model.mass_damping`) the
+   consignment comes to rest; the run stops when the kinetic energy is below
+   ``kinetic_tolerance`` or after ``max_settle_time``.
+
+The two phases are two models of the same mesh (node numbering is identical by construction);
+the state carries over. The result is a :class:`Snapshot` at rest.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from flexparcel.consignments.build import Consignment, ConsignmentBuild, add_consignment
+from flexparcel.consignments.snapshot import Snapshot
+from flexparcel.integrate import assembly as asm
+from flexparcel.integrate.dynamic import IntegratorOptions
+from flexparcel.model.builder import Model, ModelBuilder, State
+from flexparcel.model.schedule import Schedule
+from flexparcel.simulate import simulate
+
+__all__ = ["AssemblySettings", "AssemblyError", "assemble", "opening_clearance"]
+
+
+class AssemblyError(RuntimeError):
+    """The packaging could not be opened or did not come to rest."""
+
+
+@dataclass(frozen=True)
+class AssemblySettings:
+    """Settings of :func:`assemble` (SI units)."""
+
+    opening_pressure: float = 5000.0
+    """Opening force per layer divided by the flat packaging area [Pa], spread equally over
+    the layer's nodes. It grows linearly from 0 to this value over ``max_opening_time`` and
+    stops growing as soon as the packaging is open (a flat envelope only opens by bending at
+    its border and stretching, so the force needed depends strongly on the material and the
+    mesh; the ramp finds it)."""
+    check_every: float = 0.005
+    max_opening_time: float = 0.2
+    margin: float = 1.5e-3
+    """Clearance [m] between content and packaging required before the contact goes on."""
+    release_time: float = 0.03
+    max_settle_time: float = 0.4
+    settle_chunk: float = 0.05
+    kinetic_tolerance: float = 1e-6
+    """Kinetic energy [J] below which the consignment counts as at rest."""
+    mass_damping: float = 80.0
+    """Rayleigh alpha [1/s] during the assembly (critical for modes near 40 rad/s)."""
+    tol_displacement: float = 2e-4
+
+    def __post_init__(self) -> None:
+        for k, v in asdict(self).items():
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"AssemblySettings.{k} must be > 0, got {v!r}")
+
+
+def _model(build: ConsignmentBuild, settings: AssemblySettings, contact: bool,
+           forces: Schedule) -> tuple[Model, Consignment]:  # fmt: skip
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0), mass_damping=settings.mass_damping)
+    c = add_consignment(b, build, content_contact=Schedule.constant(1.0 if contact else 0.0))
+    length, width = build.flat_size
+    total = settings.opening_pressure * length * width
+    b.add_force(c.top, (0.0, 0.0, total / len(c.top)), schedule=forces)
+    b.add_force(c.bottom, (0.0, 0.0, -total / len(c.bottom)), schedule=forces)
+    return b.finalize(), c
+
+
+def _content_extent(c: Consignment, s: State) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounds (lo, hi) of the content [m] in state ``s``."""
+    if c.content_body is not None:
+        half = np.asarray(c.content_box) / 2
+        r = s.rotations[c.content_body]
+        ext = np.abs(r) @ half
+        p = s.positions[c.content_body]
+        return p - ext, p + ext
+    p = s.positions[c.content_nodes]
+    return p.min(axis=0), p.max(axis=0)
+
+
+def opening_clearance(c: Consignment, s: State) -> float:
+    """Smallest gap [m] between the content's top/bottom faces and the packaging layers over
+    the content's footprint (negative while a layer still cuts through the content)."""
+    lo, hi = _content_extent(c, s)
+    gaps = [np.inf]
+    for ids, sign in ((c.top, 1.0), (c.bottom, -1.0)):
+        p = s.positions[ids]
+        over = np.all((p[:, :2] >= lo[:2]) & (p[:, :2] <= hi[:2]), axis=1)
+        if np.any(over):
+            z = p[over, 2]
+            gaps.append(float(np.min(z - hi[2])) if sign > 0 else float(np.min(lo[2] - z)))
+    return min(gaps) - c.contact_radius
+
+
+def assemble(
+    build: ConsignmentBuild,
+    settings: AssemblySettings | None = None,
+    *,
+    options: IntegratorOptions | None = None,
+    progress: Callable[[str, float], None] | None = None,
+) -> Snapshot:
+    """Open, fill, close and settle ``build``; returns the settled :class:`Snapshot`.
+
+    ``progress(phase, simulated_time)`` is called after every chunk.
+    """
+    st = settings or AssemblySettings()
+    opt = options or IntegratorOptions(rho_inf=0.5, tol_displacement=st.tol_displacement)
+    wall0 = time.perf_counter()
+    opening = Schedule((0.0, st.max_opening_time), (0.0, 1.0))
+    model_a, c = _model(build, st, False, opening)
+    s = model_a.initial_state()
+    steps = 0
+    while opening_clearance(c, s) < st.margin:
+        if s.time >= st.max_opening_time:
+            raise AssemblyError(
+                f"{build.spec.id}: the packaging did not open enough in {st.max_opening_time} s "
+                f"(clearance {opening_clearance(c, s) * 1e3:.2f} mm < margin "
+                f"{st.margin * 1e3:.2f} mm); raise AssemblySettings.opening_pressure"
+            )
+        r = simulate(model_a, s.time + st.check_every, dt_out=st.check_every, options=opt,
+                     state=s)  # fmt: skip
+        s, steps = r.final_state, steps + r.stats["steps"]
+        if progress:
+            progress("opening", s.time)
+    t_open = s.time
+    release = Schedule((t_open, t_open + st.release_time), (opening(t_open), 0.0))
+    model_b, c = _model(build, st, True, release)
+    t_end = t_open + st.release_time
+    kin = np.inf
+    while True:
+        r = simulate(model_b, t_end, dt_out=t_end - s.time, options=opt, state=s)
+        s, steps = r.final_state, steps + r.stats["steps"]
+        kin = asm.kinetic_energy(model_b, s.velocities, s.rotations)
+        if progress:
+            progress("settling", s.time)
+        if kin < st.kinetic_tolerance or s.time >= t_open + st.release_time + st.max_settle_time:
+            break
+        t_end = s.time + st.settle_chunk
+    if kin >= st.kinetic_tolerance:
+        raise AssemblyError(
+            f"{build.spec.id}: not at rest after {st.max_settle_time} s of settling (kinetic "
+            f"energy {kin:.3g} J >= {st.kinetic_tolerance:g} J)"
+        )
+    n = model_b.node_count
+    info = {
+        "settings": asdict(st),
+        "opening_time_s": t_open,
+        "opening_pressure_Pa": st.opening_pressure * opening(t_open),
+        "end_time_s": s.time,
+        "kinetic_energy_J": kin,
+        "steps": steps,
+        "wall_s": time.perf_counter() - wall0,
+        "packaging_mass_kg": c.packaging_mass,
+        "content_mass_kg": c.content_mass,
+    }
+    return Snapshot(build, model_b.positions0[:n].copy(), s.positions.copy(),
+                    s.rotations.copy(), info)  # fmt: skip

@@ -1,0 +1,312 @@
+"""Consignment builders: the paper's four consignments (Table 2) and user-defined ones.
+
+Each consignment is built bottom-up as in the paper (section 3.1): two packaging halves meshed
+with square shells and joined at their shared border nodes (a closed envelope), KP/BW's 10 mm
+glued strip of doubled thickness along one short side, and the content inside, a rigid rounded
+box or (PB) a hexahedral solid mesh. The packaging starts almost flat (the top layer 2 mm above
+the bottom one, see :func:`flexparcel.scenarios.envelope.two_layer_envelope`); the assembly
+(:mod:`flexparcel.consignments.assembly`) opens it with forces, switches the packaging-content
+contact on and lets the packaging close around the content, which leaves the prestress of the
+real packaging in the model.
+
+Simplifications, written down rather than hidden:
+
+- KP's wedge folded from eight layers is built as the same two-layer envelope (made of kraft
+  paper, with its glue stripe FDR); the unfolding by forces is the envelope's opening.
+- BW's rounded short sides come from the opening as well (the layers bend round the content at
+  every border); the FDR-and-torque fold of the paper is not reproduced.
+- The flat packaging is made just large enough that the content fits once it is wrapped:
+  ``max(outer, content + content height + 4 mm)`` in length and width (a flat bag of exactly the
+  filled outer size cannot hold a content of the same width).
+
+Coordinates: the bottom layer lies in z = 0 centred on the origin, x along the length.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from flexparcel.consignments.materials import (
+    FLEXIBLE_CONTENT,
+    PackagingMaterial,
+    packaging_material,
+)
+from flexparcel.contact.law import ContactLaw
+from flexparcel.elements.solid import SolidMaterial
+from flexparcel.model.builder import ModelBuilder
+from flexparcel.model.materials import ShellMaterial
+from flexparcel.model.rigid import RoundedBox
+from flexparcel.model.schedule import Schedule
+from flexparcel.scenarios.envelope import two_layer_envelope
+from flexparcel.selection.export import ConsignmentSpec
+
+__all__ = [
+    "PRESETS",
+    "PRESET_ELEMENT_SIZE",
+    "Consignment",
+    "ConsignmentBuild",
+    "preset",
+    "add_consignment",
+    "default_packaging_content_law",
+]
+
+# Table 2 of the paper (reference/consignments.csv): outer and content sizes [mm], total mass [g]
+PRESETS: dict[str, ConsignmentSpec] = {
+    "KPBW": ConsignmentSpec(
+        "KPBW", "kraft_paper_bubble_wrap", 275, 200, 20, "rigid", 165, 125, 20, 140,
+        content_fixed_to_packaging=False, based_on_cluster=1,
+    ),
+    "PB": ConsignmentSpec(
+        "PB", "polybag", 315, 225, 20, "flexible", 310, 225, 20, 180,
+        content_fixed_to_packaging=False, based_on_cluster=3,
+    ),
+    "KP": ConsignmentSpec(
+        "KP", "kraft_paper", 320, 250, 30, "rigid", 310, 225, 30, 380,
+        content_fixed_to_packaging=True, based_on_cluster=4,
+    ),
+    "BW": ConsignmentSpec(
+        "BW", "bubble_wrap", 200, 150, 20, "rigid", 165, 125, 20, 80,
+        content_fixed_to_packaging=False, based_on_cluster=6,
+    ),
+}  # fmt: skip
+PRESET_ELEMENT_SIZE = {"KPBW": 0.010, "PB": 0.010, "KP": 0.010, "BW": 0.005}
+"""Shell edge length [m] per preset (paper 3.1.1: 10 mm, 5 mm for BW)."""
+
+GLUED_STRIP_WIDTH = 0.010  # KP/BW, paper 3.1.1
+INITIAL_GAP = 2e-3  # top layer above the bottom one before the opening [m]
+FIT_CLEARANCE = 4e-3  # flat packaging >= content + content height + this [m]
+CONTENT_EDGE_RADIUS = 3e-3  # rounded edges of the cardboard box contents [m]
+CONTENT_CLEARANCE = 0.2e-3  # content above the bottom layer's contact surface [m]
+GLUE_STRIPE = (0.6, 0.020)  # KP: stripe length (fraction of content length), width [m]
+
+
+def preset(name: str) -> ConsignmentSpec:
+    """The Table 2 consignment ``name`` (KPBW, PB, KP, BW; "KP/BW" accepted)."""
+    key = name.replace("/", "").upper()
+    if key not in PRESETS:
+        raise ValueError(f"unknown consignment {name!r}; allowed: {', '.join(PRESETS)}")
+    return PRESETS[key]
+
+
+def default_packaging_content_law() -> ContactLaw:
+    """Packaging-content (and packaging-packaging) contact of the paper's Table 6: 649 N/mm,
+    0.579 Ns/mm with STEP damping over 0.1 mm; friction 0.3 (not given in the paper)."""
+    return ContactLaw.from_paper_units(
+        c_N_per_mm=649, d_Ns_per_mm=0.579, s_max_mm=0.1, mu_static=0.3, mu_dynamic=0.3
+    )
+
+
+@dataclass(frozen=True)
+class ConsignmentBuild:
+    """Everything that fixes a consignment's mesh: two equal builds number nodes identically
+    (snapshots rely on it)."""
+
+    spec: ConsignmentSpec
+    material: PackagingMaterial
+    element_size: float
+    """Shell edge length [m]."""
+
+    @classmethod
+    def of(
+        cls,
+        spec: ConsignmentSpec | str,
+        *,
+        element_size: float | None = None,
+        material: PackagingMaterial | None = None,
+    ) -> ConsignmentBuild:
+        spec = preset(spec) if isinstance(spec, str) else spec
+        if element_size is None:
+            element_size = PRESET_ELEMENT_SIZE.get(spec.id, 0.010)
+        if not (np.isfinite(element_size) and 1e-3 <= element_size <= 0.1):
+            raise ValueError(f"element_size must be in [0.001, 0.1] m, got {element_size!r}")
+        mat = material or packaging_material(spec.packaging_material)
+        return cls(spec, mat, float(element_size))
+
+    def to_dict(self) -> dict:
+        return {
+            "spec": asdict(self.spec),
+            "material": asdict(self.material),
+            "element_size": self.element_size,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ConsignmentBuild:
+        return cls(
+            ConsignmentSpec(**d["spec"]),
+            PackagingMaterial(**d["material"]),
+            float(d["element_size"]),
+        )
+
+    @property
+    def flat_size(self) -> tuple[float, float]:
+        """Length and width [m] of the flat packaging (without KP/BW's glued strip)."""
+        s = self.spec
+        strip = GLUED_STRIP_WIDTH if self.has_glued_strip else 0.0
+        need_l = (s.content_length_mm + s.content_height_mm) * 1e-3 + FIT_CLEARANCE
+        need_w = (s.content_width_mm + s.content_height_mm) * 1e-3 + FIT_CLEARANCE
+        return max(s.length_mm * 1e-3 - strip, need_l), max(s.width_mm * 1e-3, need_w)
+
+    @property
+    def has_glued_strip(self) -> bool:
+        return self.spec.packaging_material == "kraft_paper_bubble_wrap"
+
+
+@dataclass
+class Consignment:
+    """Node ids and masses of a consignment added to a :class:`ModelBuilder`."""
+
+    build: ConsignmentBuild
+    packaging: np.ndarray
+    """All packaging shell nodes (both layers and the glued strip)."""
+    top: np.ndarray
+    """Top-layer nodes off the border (the opening force pulls them up)."""
+    bottom: np.ndarray
+    """Bottom-layer nodes off the border (pulled down), minus KP's glue stripe."""
+    border: np.ndarray
+    """Nodes shared by both layers."""
+    edge: np.ndarray
+    """Nodes of the outer edge at +x (KP/BW: the glued strip's): the vertical drop's line
+    contact stands on it."""
+    content_body: int | None
+    """Rigid content's node, or None for a flexible content."""
+    content_nodes: np.ndarray
+    """Solid content's nodes (flexible), or [content_body]."""
+    packaging_mass: float
+    content_mass: float
+    contact_radius: float
+    """Half the packaging thickness [m]."""
+    content_box: tuple[float, float, float]
+    """Content length, width, height [m]."""
+    glue: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    """KP: bottom-layer nodes tied to the content (FDR glue stripe)."""
+
+    @property
+    def node_ids(self) -> np.ndarray:
+        """Every node of the consignment."""
+        return np.union1d(self.packaging, self.content_nodes)
+
+
+def add_consignment(
+    b: ModelBuilder,
+    build: ConsignmentBuild,
+    *,
+    content_law: ContactLaw | None = None,
+    content_contact: Schedule | None = None,
+    self_contact: bool = True,
+) -> Consignment:
+    """Add the packaging, the content, the packaging-content contact (switched by
+    ``content_contact``, default on) and the packaging's self contact (layer on layer)."""
+    spec, mat, h = build.spec, build.material, build.element_size
+    length, width = build.flat_size
+    pts, quads, bottom_ids, top_ids = two_layer_envelope(length, width, INITIAL_GAP, h)
+    nx = max(2, round(length / h))
+    ny = max(2, round(width / h))
+    on_border = np.zeros(len(pts), bool)
+    i, j = bottom_ids % (nx + 1), bottom_ids // (nx + 1)
+    on_border[bottom_ids[(i == 0) | (i == nx) | (j == 0) | (j == ny)]] = True
+    strip_area = 0.0
+    strip_quads = None
+    if build.has_glued_strip:
+        # one row of doubled-thickness shells outside the +x border, in the border's plane
+        col = bottom_ids[i == nx]  # ordered by j
+        new = len(pts) + np.arange(len(col))
+        pts = np.vstack([pts, pts[col] + (GLUED_STRIP_WIDTH, 0.0, 0.0)])
+        strip_quads = np.column_stack([col[:-1], new[:-1], new[1:], col[1:]])
+        edge_local = new
+        strip_area = GLUED_STRIP_WIDTH * width
+    else:
+        edge_local = bottom_ids[i == nx]
+    t = mat.thickness
+    shell = ShellMaterial(mat.youngs_modulus, mat.poisson_ratio, mat.density, t, mat.damping_ratio)
+    ids = b.add_shell_mesh(pts, quads, material=shell)
+    if strip_quads is not None:
+        doubled = ShellMaterial(
+            mat.youngs_modulus, mat.poisson_ratio, mat.density, 2 * t, mat.damping_ratio
+        )
+        b.add_shell_elements(ids[strip_quads], material=doubled)
+    # real mesh area (the first ring of the top layer slopes up to the initial gap)
+    q = pts[quads]
+    area = 0.5 * np.linalg.norm(np.cross(q[:, 2] - q[:, 0], q[:, 3] - q[:, 1]), axis=1).sum()
+    packaging_mass = mat.areal_density * (area + 2 * strip_area)
+    content_mass = spec.mass_g * 1e-3 - packaging_mass
+    if content_mass <= 0:
+        raise ValueError(
+            f"consignment {spec.id!r}: the packaging alone weighs {packaging_mass * 1e3:.1f} g, "
+            f"more than mass_g = {spec.mass_g} g; lower the packaging's areal_density"
+        )
+    lc, wc, hc = (spec.content_length_mm * 1e-3, spec.content_width_mm * 1e-3,
+                  spec.content_height_mm * 1e-3)  # fmt: skip
+    zc = t / 2 + CONTENT_CLEARANCE + hc / 2
+    law = content_law or default_packaging_content_law()
+    sched = content_contact or Schedule.constant(1.0)
+    glue = np.zeros(0, np.int64)
+    if spec.content_kind == "rigid":
+        radius = min(CONTENT_EDGE_RADIUS, 0.25 * min(lc, wc, hc))
+        body = b.add_rigid_body(RoundedBox(lc, wc, hc, edge_radius=radius, mass=content_mass),
+                                (0.0, 0.0, zc))  # fmt: skip
+        content_nodes = np.array([body])
+        contact_nodes = ids
+        if spec.content_fixed_to_packaging:
+            gl, gw = GLUE_STRIPE[0] * lc, GLUE_STRIPE[1]
+            p = pts[bottom_ids]
+            inside = (np.abs(p[:, 0]) <= gl / 2 + 1e-9) & (np.abs(p[:, 1]) <= gw / 2 + 1e-9)
+            glue = ids[bottom_ids[inside & ~on_border[bottom_ids]]]
+            if glue.size == 0:
+                raise ValueError(f"consignment {spec.id!r}: the glue stripe holds no node")
+            b.add_fdr(glue, reference=body)
+            contact_nodes = np.setdiff1d(ids, glue)
+        b.add_body_contact(contact_nodes, body, law, radius=t / 2, schedule=sched)
+    else:
+        body = None
+        sp_, cells = _hex_block(lc, wc, hc, h, (0.0, 0.0, zc))
+        volume = lc * wc * hc
+        solid = SolidMaterial(
+            FLEXIBLE_CONTENT["youngs_modulus"], FLEXIBLE_CONTENT["poisson_ratio"],
+            content_mass / volume, FLEXIBLE_CONTENT["damping_ratio"],
+        )  # fmt: skip
+        content_nodes = b.add_solid_mesh(sp_, cells, "hex8", material=solid)
+        b.add_face_contact(ids, content_nodes, law, thickness=t / 2, schedule=sched)
+    if self_contact:
+        b.add_self_contact(ids, law, thickness=t)
+    top = ids[top_ids]
+    bottom = ids[bottom_ids[~on_border[bottom_ids]]]
+    return Consignment(
+        build=build,
+        packaging=ids,
+        top=top,
+        bottom=np.setdiff1d(bottom, glue),
+        border=ids[bottom_ids[on_border[bottom_ids]]],
+        edge=ids[edge_local],
+        content_body=body,
+        content_nodes=content_nodes,
+        packaging_mass=packaging_mass,
+        content_mass=content_mass,
+        contact_radius=t / 2,
+        content_box=(lc, wc, hc),
+        glue=glue,
+    )
+
+
+def _hex_block(lx: float, ly: float, lz: float, h: float, centre) -> tuple[np.ndarray, np.ndarray]:
+    """Points and hex8 cells (VTK order) of a block centred at ``centre``, cells about ``h``
+    (at least two through the height so it can bend)."""
+    nx, ny = max(1, round(lx / h)), max(1, round(ly / h))
+    nz = max(2, round(lz / h))
+    xs = np.linspace(-lx / 2, lx / 2, nx + 1) + centre[0]
+    ys = np.linspace(-ly / 2, ly / 2, ny + 1) + centre[1]
+    zs = np.linspace(-lz / 2, lz / 2, nz + 1) + centre[2]
+    z, y, x = np.meshgrid(zs, ys, xs, indexing="ij")
+    pts = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+
+    def nid(i, j, k):
+        return (k * (ny + 1) + j) * (nx + 1) + i
+
+    k, j, i = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
+    i, j, k = i.ravel(), j.ravel(), k.ravel()
+    cells = np.column_stack([
+        nid(i, j, k), nid(i + 1, j, k), nid(i + 1, j + 1, k), nid(i, j + 1, k),
+        nid(i, j, k + 1), nid(i + 1, j, k + 1), nid(i + 1, j + 1, k + 1), nid(i, j + 1, k + 1),
+    ])  # fmt: skip
+    return pts, cells.astype(np.int64)
