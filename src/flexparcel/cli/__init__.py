@@ -17,6 +17,8 @@ __all__ = ["main", "build_parser"]
 # Sub-command modules, in the order they appear in --help.
 _COMMAND_MODULES = (
     "flexparcel.cli.demo_cmd",
+    "flexparcel.cli.assemble_cmd",
+    "flexparcel.cli.run_cmd",
     "flexparcel.cli.bench_cmd",
     "flexparcel.cli.verify_cmd",
     "flexparcel.cli.calibrate_cmd",
