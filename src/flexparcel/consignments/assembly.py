@@ -116,7 +116,12 @@ def assemble(
     ``progress(phase, simulated_time)`` is called after every chunk.
     """
     st = settings or AssemblySettings()
-    opt = options or IntegratorOptions(rho_inf=0.5, tol_displacement=st.tol_displacement)
+    opt = options or IntegratorOptions(
+        rho_inf=0.5,
+        tol_displacement=st.tol_displacement,
+        impact_limit="rigid",
+        error_estimate="smooth",
+    )
     wall0 = time.perf_counter()
     opening = Schedule((0.0, st.max_opening_time), (0.0, 1.0))
     model_a, c = _model(build, st, False, opening)
