@@ -15,7 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CASES", "run_case", "run_benchmarks"]
+__all__ = [
+    "CASES",
+    "DEFAULT_CASES",
+    "RECURDYN_CONVEYOR_WALL_S",
+    "run_case",
+    "run_benchmarks",
+    "conveyor_scaling",
+    "plot_scaling",
+]
 
 
 def _sheet_swing(quick: bool = False, progress=None) -> dict:
@@ -104,20 +112,220 @@ def _envelope_drop(quick: bool = False, progress=None) -> dict:
     }
 
 
+RECURDYN_CONVEYOR_WALL_S = 24 * 3600.0
+"""The paper's RecurDyn bulk run: 24 h (4 cores) for 2 s simulated."""
+
+
+def _conveyor_snapshots(
+    consignments, element_size_mm: float | None, snapshot_dir: str | Path | None, work: Path
+) -> tuple[dict, float]:
+    """Snapshots of ``consignments`` (presets or .toml files): from ``snapshot_dir`` or
+    assembled (cached under ``work``); returns them and the assembly wall time [s]."""
+    from flexparcel.cli.conveyor_job import snapshot_for
+    from flexparcel.consignments.userfile import resolve_consignment
+
+    size = None if element_size_mm is None else element_size_mm * 1e-3
+    snaps = {}
+    t0 = time.perf_counter()
+    for ref in consignments:
+        key = Path(ref).stem if str(ref).lower().endswith(".toml") else str(ref).upper()
+        build = resolve_consignment(str(ref), size)
+        snaps[key], _ = snapshot_for(key, build, work, snapshot_dir=snapshot_dir,
+                                     element_size_given=size is not None, progress=False,
+                                     log=lambda _m: None)  # fmt: skip
+    return snaps, time.perf_counter() - t0
+
+
+def _conveyor(
+    quick: bool = False,
+    progress=None,
+    *,
+    consignments=("KPBW", "PB", "KP", "BW"),
+    element_size_mm: float | None = 25.0,
+    t_end: float | None = None,
+    snapshot_dir: str | Path | None = None,
+    work: str | Path = "out/bench-conveyor",
+    start_speed: float = 0.0,
+) -> dict:
+    """The paper's bulk scene (:func:`~flexparcel.scenarios.conveyor_scene.default_layout`
+    on :func:`~flexparcel.scenarios.conveyor_scene.paper_conveyor`, 1.6 m/s, 45 deg) for
+    ``t_end`` [s] (default 2, quick 0.005) at ``element_size_mm``; snapshots from
+    ``snapshot_dir`` or assembled into ``work`` (assembly time reported apart)."""
+    from flexparcel.scenarios.conveyor_scene import default_layout, run_conveyor
+
+    t_end = (0.005 if quick else 2.0) if t_end is None else float(t_end)
+    snaps, assembly_wall = _conveyor_snapshots(consignments, element_size_mm, snapshot_dir,
+                                               Path(work))  # fmt: skip
+    layout = default_layout({k: s.build for k, s in snaps.items()}, speed=start_speed)
+    run = run_conveyor(snaps, layout, t_end, dt_out=min(0.01, t_end / 10), progress=progress)
+    st = run.result.stats
+    recurdyn_s = RECURDYN_CONVEYOR_WALL_S * t_end / 2.0
+    return {
+        "case": "conveyor",
+        "description": "paper bulk scene: consignments queued on the centre line of a 1.6 m/s "
+        "belt upstream of two 45 deg deflectors (paper_conveyor, default_layout)",
+        "consignments": list(snaps),
+        "element_size_mm": {k: s.build.element_size * 1e3 for k, s in snaps.items()},
+        "start_speed_m_s": start_speed,
+        "simulated_s": t_end,
+        "wall_s": run.wall_s,
+        "build_wall_s": run.build_wall_s,
+        "assembly_wall_s": assembly_wall,
+        "dof_count": run.conveyor_model.model.dof_count,
+        "node_count": run.conveyor_model.model.node_count,
+        "steps": st["steps"],
+        "rejected_steps": st["rejected_steps"],
+        "newton_iterations": st["newton_iterations"],
+        "factorizations": st.get("factorizations"),
+        "phase_wall_s": {k: v for k, v in st["wall_s"].items() if k != "total"},
+        "simulated_s_per_wall_s": t_end / run.wall_s,
+        "wall_s_for_2s_extrapolated": run.wall_s * 2.0 / t_end,
+        "recurdyn_wall_s": recurdyn_s,
+        "speedup_vs_recurdyn": recurdyn_s / run.wall_s,
+        "note": "RecurDyn: 24 h on 4 cores for 2 s; recurdyn_wall_s is scaled to simulated_s. "
+        "A short run extrapolates badly: the start (before the deflectors) is cheaper or "
+        "dearer than the rest.",
+    }
+
+
+def conveyor_scaling(
+    snapshot,
+    counts=(1, 2, 4, 8),
+    *,
+    t_end: float = 0.01,
+    start_speed: float = 1.6,
+    progress_factory=None,
+) -> dict:
+    """Wall time of :func:`~flexparcel.scenarios.conveyor_scene.run_conveyor` against the
+    number of consignments: ``count`` copies of ``snapshot``'s consignment queued on a belt
+    long enough for them (:func:`~flexparcel.scenarios.conveyor_scene.throughput_layout`),
+    started at ``start_speed`` [m/s], for ``t_end`` [s]. Consignment contact only between
+    neighbours that can meet (``pair_reach`` = belt speed * t_end + 5 cm). Returns a table
+    (``rows``) and the least-squares exponent of wall ~ count**p (1 = linear)."""
+    from flexparcel.scenarios.conveyor_scene import run_conveyor, throughput_layout
+
+    rows = []
+    key = "c"
+    for n in counts:
+        layout = throughput_layout(snapshot.build, int(n), name=key, speed=start_speed)
+        prog = progress_factory(f"conveyor x{n}") if progress_factory else None
+        reach = layout.conveyor.belt_speed * t_end + 0.05
+        run = run_conveyor({key: snapshot}, layout, t_end, dt_out=t_end / 5, pair_reach=reach,
+                           progress=prog)  # fmt: skip
+        st = run.result.stats
+        rows.append({
+            "count": int(n), "wall_s": run.wall_s, "build_wall_s": run.build_wall_s,
+            "wall_s_per_consignment": run.wall_s / n, "steps": st["steps"],
+            "newton_iterations": st["newton_iterations"],
+            "wall_s_per_newton_iteration": run.wall_s / max(1, st["newton_iterations"]),
+            "dof_count": run.conveyor_model.model.dof_count,
+            "contact_pairs": len(run.conveyor_model.consignment_pairs),
+        })  # fmt: skip
+    n = np.array([r["count"] for r in rows], float)
+    w = np.array([r["wall_s"] for r in rows], float)
+    it = np.array([r["wall_s_per_newton_iteration"] for r in rows], float)
+    fit = lambda y: float(np.polyfit(np.log(n), np.log(y), 1)[0]) if len(n) > 1 else None  # noqa: E731
+    return {
+        "case": "conveyor-scaling",
+        "consignment": snapshot.build.spec.id,
+        "element_size_mm": snapshot.build.element_size * 1e3,
+        "simulated_s": t_end,
+        "start_speed_m_s": start_speed,
+        "rows": rows,
+        "wall_exponent": fit(w),
+        "per_iteration_exponent": fit(it),
+        "note": "wall ~ count**wall_exponent (least squares in log-log); per_iteration_exponent "
+        "removes the effect of the step count (the adaptive step is shared by all "
+        "consignments, so more consignments can mean more, smaller steps)",
+    }
+
+
+def plot_scaling(table: dict, path: str | Path) -> Path:
+    """Wall time and wall time per Newton iteration against consignment count (log-log),
+    with the linear reference."""
+    from flexparcel.viz.consignment import _pyplot
+
+    plt = _pyplot()
+    rows = table["rows"]
+    n = np.array([r["count"] for r in rows], float)
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    for key, label in (
+        ("wall_s", "wall time [s]"),
+        ("wall_s_per_newton_iteration", "wall per Newton iteration [s]"),
+    ):
+        y = np.array([r[key] for r in rows], float)
+        ax.loglog(n, y, "o-", label=label)
+        ax.loglog(n, y[0] * n / n[0], ":", color="grey")
+    ax.set_xlabel("consignments")
+    p_exp = table["wall_exponent"]
+    ax.set_title(
+        f"conveyor scaling, {table['simulated_s']:g} s simulated (wall ~ N^"
+        f"{p_exp if p_exp is None else round(p_exp, 2)}; dotted: linear)",
+        fontsize=9,
+    )
+    ax.legend(fontsize=8)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _conveyor_scaling_case(
+    quick: bool = False,
+    progress=None,
+    *,
+    counts=(1, 2, 4, 8),
+    t_end: float | None = None,
+    consignment: str = "examples/consignment_small.toml",
+    element_size_mm: float | None = None,
+    snapshot_dir: str | Path | None = None,
+    work: str | Path = "out/bench-conveyor",
+    plot: str | Path | None = None,
+) -> dict:
+    """Bench case ``conveyor-scaling``: :func:`conveyor_scaling` on copies of
+    ``consignment`` (default the small example), plot written to ``plot``."""
+    t_end = (0.002 if quick else 0.01) if t_end is None else float(t_end)
+    if quick:
+        counts = tuple(c for c in counts if c <= 2) or (1,)
+    snaps, assembly_wall = _conveyor_snapshots([consignment], element_size_mm, snapshot_dir,
+                                               Path(work))  # fmt: skip
+    table = conveyor_scaling(next(iter(snaps.values())), counts, t_end=t_end)
+    table["assembly_wall_s"] = assembly_wall
+    table["wall_s"] = sum(r["wall_s"] for r in table["rows"])
+    table["dof_count"] = table["rows"][-1]["dof_count"]
+    table["steps"] = sum(r["steps"] for r in table["rows"])
+    table["newton_iterations"] = sum(r["newton_iterations"] for r in table["rows"])
+    table["speedup_vs_recurdyn"] = None
+    if plot is not None:
+        table["plot"] = str(plot_scaling(table, plot))
+    return table
+
+
 CASES: dict[str, Callable[..., dict]] = {
     "sheet-swing": _sheet_swing,
     "envelope-drop": _envelope_drop,
+    "conveyor": _conveyor,
+    "conveyor-scaling": _conveyor_scaling_case,
 }
+DEFAULT_CASES = ("sheet-swing", "envelope-drop")
+"""What ``flexparcel bench`` runs without names (the conveyor cases are long: name them)."""
 
 
-def run_case(name: str, quick: bool = False, progress=None) -> dict:
+def run_case(name: str, quick: bool = False, progress=None, **options) -> dict:
+    """Run case ``name``; ``options`` go to the case (only the conveyor cases take any)."""
     if name not in CASES:
         raise ValueError(f"unknown benchmark case {name!r}; known: {sorted(CASES)}")
-    return CASES[name](quick=quick, progress=progress)
+    return CASES[name](quick=quick, progress=progress, **options)
 
 
 def run_benchmarks(
-    names: list[str], out: Path, quick: bool = False, progress_factory=None
+    names: list[str],
+    out: Path,
+    quick: bool = False,
+    progress_factory=None,
+    case_options: dict[str, dict] | None = None,
 ) -> list[dict]:
     from flexparcel import __version__
     from flexparcel.io.atomic import write_atomic
@@ -125,7 +333,8 @@ def run_benchmarks(
     results = []
     for name in names:
         prog = progress_factory(name) if progress_factory else None
-        results.append(run_case(name, quick=quick, progress=prog))
+        opts = (case_options or {}).get(name, {})
+        results.append(run_case(name, quick=quick, progress=prog, **opts))
     doc = {
         "flexparcel_version": __version__,
         "machine": {

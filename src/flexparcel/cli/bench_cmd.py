@@ -8,7 +8,7 @@ from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from flexparcel.bench import CASES
+    from flexparcel.bench import CASES, DEFAULT_CASES
 
     p = sub.add_parser(
         "bench",
@@ -19,13 +19,64 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "cases",
         nargs="*",
-        default=list(CASES),
+        default=list(DEFAULT_CASES),
         metavar="CASE",
-        help=f"cases to run (default: all): {', '.join(CASES)}",
+        help=f"cases to run: {', '.join(CASES)} (default: {', '.join(DEFAULT_CASES)}; the "
+        "conveyor cases are long, name them)",
     )
     p.add_argument("--out", type=Path, default=Path("out/bench.json"), help="JSON file to write")
     p.add_argument("--quick", action="store_true", help="short simulated times (smoke test)")
     p.add_argument("--no-progress", action="store_true")
+    g = p.add_argument_group("conveyor cases (recorded in the JSON)")
+    g.add_argument(
+        "--conveyor-consignments",
+        default="KPBW,PB,KP,BW",
+        metavar="A,B,...",
+        help="conveyor: consignments of the scene (default KPBW,PB,KP,BW)",
+    )
+    g.add_argument(
+        "--element-size",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="conveyor cases: shell edge length [mm] (default 25 for the conveyor; "
+        "the scaling case keeps its consignment file's unless given)",
+    )
+    g.add_argument(
+        "--t-end",
+        type=float,
+        default=None,
+        metavar="S",
+        help="conveyor cases: simulated time [s] (default 2 for conveyor, 0.01 for "
+        "conveyor-scaling; --quick: 0.005 / 0.002)",
+    )
+    g.add_argument(
+        "--start-speed",
+        type=float,
+        default=0.0,
+        metavar="M/S",
+        help="conveyor: initial speed of the consignments along the belt [m/s]",
+    )
+    g.add_argument(
+        "--snapshot-dir",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="conveyor cases: snapshots NAME.npz or NAME/snapshot.npz (else "
+        "assembled and cached next to --out)",
+    )
+    g.add_argument(
+        "--scaling-counts",
+        default="1,2,4,8",
+        metavar="N,N,...",
+        help="conveyor-scaling: consignment counts (default 1,2,4,8)",
+    )
+    g.add_argument(
+        "--scaling-consignment",
+        default="examples/consignment_small.toml",
+        metavar="NAME",
+        help="conveyor-scaling: the copied consignment",
+    )
     p.set_defaults(func=run)
 
 
@@ -33,11 +84,41 @@ def run(args: argparse.Namespace) -> int:
     from flexparcel.bench import run_benchmarks
     from flexparcel.cli.progress import ProgressLine
 
+    try:
+        counts = tuple(int(c) for c in args.scaling_counts.split(","))
+    except ValueError:
+        raise ValueError(
+            f"--scaling-counts must be integers separated by commas, got {args.scaling_counts!r}"
+        ) from None
+    if not counts or min(counts) < 1 or max(counts) > 200:
+        raise ValueError(f"--scaling-counts must be in [1, 200], got {args.scaling_counts!r}")
+    if args.t_end is not None and not 0.0 < args.t_end <= 10.0:
+        raise ValueError(f"--t-end must be in (0, 10] s, got {args.t_end:g}")
+    if args.element_size is not None and not 1.0 <= args.element_size <= 100.0:
+        raise ValueError(f"--element-size must be in [1, 100] mm, got {args.element_size:g}")
+    work = Path(args.out).parent / "bench-conveyor"
+    common = {"t_end": args.t_end, "snapshot_dir": args.snapshot_dir, "work": work}
+    options = {
+        "conveyor": {
+            **common,
+            "consignments": [c.strip() for c in args.conveyor_consignments.split(",")],
+            "element_size_mm": 25.0 if args.element_size is None else args.element_size,
+            "start_speed": args.start_speed,
+        },
+        "conveyor-scaling": {
+            **common,
+            "counts": counts,
+            "consignment": args.scaling_consignment,
+            "element_size_mm": args.element_size,
+            "plot": Path(args.out).with_suffix("").as_posix() + "-scaling.png",
+        },
+    }
     results = run_benchmarks(
         args.cases,
         args.out,
         quick=args.quick,
         progress_factory=lambda n: ProgressLine(n, enabled=not args.no_progress),
+        case_options=options,
     )
     for r in results:
         print(

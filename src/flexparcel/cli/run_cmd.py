@@ -1,5 +1,6 @@
 """``flexparcel run``: one of the paper's tests (swing, vertical or horizontal drop) on a
-consignment, from its snapshot (assembled first when none is given)."""
+consignment, from its snapshot (assembled first when none is given), or the conveyor scene
+with several consignments (:mod:`flexparcel.cli.conveyor_job`)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,10 @@ from flexparcel.cli.assemble_cmd import CONSIGNMENT_HELP, element_size_m
 __all__ = ["register", "run"]
 
 TESTS = ("swing", "drop-vertical", "drop-horizontal")  # as cli.consignment_jobs.TESTS
+SCENARIOS = (*TESTS, "conveyor")
+_CONVEYOR_ONLY = ("consignments", "belt_speed", "deflector_angle", "scene", "snapshot_dir",
+                  "pair_reach", "start_speed")  # fmt: skip
+_TEST_ONLY = ("consignment", "snapshot", "assignments")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,9 +27,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "and write DIR/responses.json, DIR/results.npz, ParaView files DIR/paraview/*.pvd and "
         "the pictures DIR/frames.png and DIR/response.png. Parameters not set keep the "
         "consignment's own packaging modulus and damping ratio and the paper's Table 6 contact "
-        "values.",
+        "values. 'conveyor' runs the paper's bulk scene (consignments on a belt with two "
+        "deflectors, 2 s) and writes DIR/responses.json, DIR/results.npz, "
+        "DIR/paraview/conveyor.pvd, DIR/snapshots.png (top views at 0, 1, 2 s), "
+        "DIR/trajectories.png and DIR/animation.gif; snapshots are assembled into "
+        "DIR/snapshots/ (reused when present) unless --snapshot-dir is given.",
     )
-    p.add_argument("test", choices=TESTS, help="which test")
+    p.add_argument("test", choices=SCENARIOS, help="which test or scenario")
     p.add_argument(
         "--consignment",
         help=CONSIGNMENT_HELP + "; may be left out with --snapshot",
@@ -53,6 +62,60 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="shell edge length [mm] (must match --snapshot's)")  # fmt: skip
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    g = p.add_argument_group("conveyor")
+    g.add_argument(
+        "--consignments",
+        default=None,
+        metavar="A,B,...",
+        help="conveyor: consignments queued upstream of the first deflector, "
+        "first = leading (default KPBW,PB,KP,BW); presets or .toml files",
+    )
+    g.add_argument(
+        "--belt-speed",
+        type=float,
+        default=None,
+        metavar="M/S",
+        help="conveyor: belt speed [m/s] (default 1.6)",
+    )
+    g.add_argument(
+        "--deflector-angle",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="conveyor: deflector angle to the belt direction [deg] (default 45)",
+    )
+    g.add_argument(
+        "--start-speed",
+        type=float,
+        default=None,
+        metavar="M/S",
+        help="conveyor: initial velocity of the queued consignments along the "
+        "belt [m/s] (default 0: at rest on the running belt)",
+    )
+    g.add_argument(
+        "--scene",
+        type=Path,
+        default=None,
+        metavar="FILE.toml",
+        help="conveyor: scene file (belt, deflectors, placements; see "
+        "examples/conveyor_scene.toml); options given on the command line win",
+    )
+    g.add_argument(
+        "--snapshot-dir",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="conveyor: take snapshots from DIR (NAME.npz or NAME/snapshot.npz, "
+        "e.g. from flexparcel assemble NAME --out DIR/NAME) instead of assembling",
+    )
+    g.add_argument(
+        "--pair-reach",
+        type=float,
+        default=None,
+        metavar="M",
+        help="conveyor: give consignment-consignment contact only to pairs that "
+        "start closer than this [m] (default: every pair)",
+    )
     p.set_defaults(func=run)
 
 
@@ -70,6 +133,12 @@ def run(args: argparse.Namespace) -> int:
     from flexparcel.consignments.userfile import resolve_consignment
     from flexparcel.integrate.errors import ConvergenceError
 
+    if args.test == "conveyor":
+        return _run_conveyor(args)
+    given = [k for k in _CONVEYOR_ONLY if getattr(args, k, None) is not None]
+    if given:
+        opts = ", ".join("--" + k.replace("_", "-") for k in given)
+        raise ValueError(f"{opts} only apply to 'flexparcel run conveyor', not {args.test}")
     if args.consignment is None and args.snapshot is None:
         raise ValueError("give --consignment (KPBW, PB, KP, BW or a .toml file) or --snapshot")
     if args.t_end is not None and not 0.0 < args.t_end <= 10.0:
@@ -104,5 +173,110 @@ def run(args: argparse.Namespace) -> int:
         f"in {summary['wall_s']:.1f} s wall"
     )
     for key, path in files.as_dict().items():
+        print(f"{key + ':':<18}{path}")
+    return 0
+
+
+def _run_conveyor(args: argparse.Namespace) -> int:
+    import sys
+
+    from flexparcel.cli.conveyor_job import conveyor_job, parse_consignment_list, snapshot_for
+    from flexparcel.consignments.assembly import AssemblyError
+    from flexparcel.consignments.userfile import resolve_consignment
+    from flexparcel.integrate.errors import ConvergenceError
+    from flexparcel.scenarios.conveyor_scene import (
+        PAPER_CONSIGNMENTS,
+        SceneLayout,
+        check_layout,
+        default_layout,
+        load_scene_file,
+        paper_conveyor,
+    )
+
+    bad = [k for k in _TEST_ONLY if getattr(args, k, None) not in (None, [])]
+    if bad:
+        opts = ", ".join("--" + ("set" if k == "assignments" else k) for k in bad)
+        raise ValueError(f"{opts} do not apply to the conveyor (use --consignments, --scene, "
+                         "--snapshot-dir)")  # fmt: skip
+    scene = load_scene_file(args.scene) if args.scene is not None else None
+    if scene is not None and scene.placements and args.consignments is not None:
+        raise ValueError("--consignments cannot replace the placements of --scene's "
+                         "[[consignment]] tables")  # fmt: skip
+    t_end = args.t_end if args.t_end is not None else (scene.t_end if scene and scene.t_end
+                                                       else 2.0)  # fmt: skip
+    if not 0.0 < t_end <= 10.0:
+        raise ValueError(f"--t-end must be in (0, 10] s, got {t_end:g}")
+    size = element_size_m(args.element_size)
+    if size is None and scene is not None:
+        size = scene.element_size
+    for opt, v, lo, hi, unit in (("--belt-speed", args.belt_speed, 0.0, 10.0, "m/s"),
+                                 ("--deflector-angle", args.deflector_angle, 10.0, 90.0, "deg"),
+                                 ("--start-speed", args.start_speed, 0.0, 10.0, "m/s"),
+                                 ("--pair-reach", args.pair_reach, 0.0, 1e3, "m")):  # fmt: skip
+        if v is not None and not lo <= v <= hi:
+            raise ValueError(f"{opt} must be in [{lo:g}, {hi:g}] {unit}, got {v:g}")
+    conveyor = scene.conveyor if scene is not None else paper_conveyor()
+    if args.belt_speed is not None or args.deflector_angle is not None:
+        from dataclasses import replace
+
+        speed = conveyor.belt_speed if args.belt_speed is None else args.belt_speed
+        angle = conveyor.deflector_angle_deg if args.deflector_angle is None else (
+            args.deflector_angle)  # fmt: skip
+        if scene is None:
+            conveyor = paper_conveyor(speed, angle)
+        else:
+            conveyor = replace(conveyor, belt_speed=speed, deflector_angle_deg=angle)
+    if scene is not None and args.consignments is None:
+        refs = dict(scene.consignments)
+    else:
+        names = parse_consignment_list(args.consignments or ",".join(PAPER_CONSIGNMENTS))
+        refs = {}
+        for n in names:
+            key = Path(n).stem if n.lower().endswith(".toml") else n.replace("/", "").upper()
+            refs[key] = n
+    builds = {k: resolve_consignment(ref, size) for k, ref in refs.items()}
+    if scene is not None and scene.placements:
+        layout = SceneLayout(conveyor, scene.placements, scene.gap_above_belt)
+        if args.start_speed is not None:
+            from dataclasses import replace
+
+            layout = SceneLayout(conveyor, tuple(replace(p, speed=args.start_speed)
+                                                 for p in scene.placements),
+                                 scene.gap_above_belt)  # fmt: skip
+    else:
+        start = args.start_speed if args.start_speed is not None else (
+            scene.start_speed if scene is not None else 0.0)  # fmt: skip
+        gap = scene.gap_above_belt if scene is not None else None
+        kw = {} if gap is None else {"gap_above_belt": gap}
+        layout = default_layout(builds, conveyor, speed=start, **kw)
+    check_layout(layout, builds)  # before any (long) assembly
+    progress = not args.no_progress
+    try:
+        snaps, sources = {}, {}
+        for key, build in builds.items():
+            snaps[key], sources[key] = snapshot_for(
+                key, build, args.out, snapshot_dir=args.snapshot_dir,
+                element_size_given=size is not None, progress=progress,
+            )  # fmt: skip
+        run_, summary, files = conveyor_job(
+            snaps, layout, args.out, t_end=t_end, pair_reach=args.pair_reach,
+            progress=progress, extra={"snapshots": sources,
+                                      "scene_file": None if args.scene is None
+                                      else str(args.scene)},
+        )  # fmt: skip
+    except (AssemblyError, ConvergenceError) as exc:
+        print(f"flexparcel run: conveyor failed: {exc}", file=sys.stderr)
+        return 1
+    print(
+        f"conveyor: {len(layout.placements)} consignments, {summary['simulated_s']:g} s "
+        f"simulated in {summary['wall_s']:.1f} s wall ({summary['steps']} steps)"
+    )
+    for name, r in run_.responses.items():
+        c0, c1 = r.centroid[0], r.centroid[-1]
+        exit_ = "-" if r.exit_time is None else f"{r.exit_time:.2f} s"
+        contact = ", ".join(f"{v:.3f}" for v in r.deflector_contact_time)
+        print(f"  {name}: x {c0[0]:.3f} -> {c1[0]:.3f} m, y {c0[1]:.3f} -> {c1[1]:.3f} m, "
+              f"exit {exit_}, deflector contact [{contact}] s")  # fmt: skip
+    for key, path in files.items():
         print(f"{key + ':':<18}{path}")
     return 0

@@ -51,15 +51,20 @@ class Snapshot:
             np.zeros((n, 6)),
         )  # fmt: skip
 
-    def check_fits(self, model: Model) -> None:
-        """Raise :class:`SnapshotError` unless ``model`` has this snapshot's mesh first."""
+    def check_fits(self, model: Model, first_node: int = 0) -> None:
+        """Raise :class:`SnapshotError` unless ``model`` holds this snapshot's mesh as the
+        nodes ``first_node, first_node + 1, ...`` (default: the model's first nodes)."""
         n = len(self.positions)
-        if model.node_count < n or not np.array_equal(model.positions0[:n],
-                                                      self.reference_positions):  # fmt: skip
+        k = int(first_node)
+        if (
+            k < 0
+            or model.node_count < k + n
+            or not np.array_equal(model.positions0[k : k + n], self.reference_positions)
+        ):
+            where = f"first {n} nodes" if k == 0 else f"{n} nodes from node {k}"
             raise SnapshotError(
-                f"snapshot of {self.build.spec.id!r} does not fit this model (its first "
-                f"{n} nodes must be the snapshot's mesh; was the consignment built with other "
-                "settings?)"
+                f"snapshot of {self.build.spec.id!r} does not fit this model (its {where} "
+                "must be the snapshot's mesh; was the consignment built with other settings?)"
             )
 
 
@@ -110,17 +115,35 @@ def place_snapshot(
     rotation: np.ndarray | None = None,
     lowest_z: float | None = None,
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    first_node: int = 0,
+    state: State | None = None,
 ) -> State:
     """Initial state of ``model`` with the snapshot's nodes moved rigidly: rotated by
     ``rotation`` (3, 3) about the origin, then shifted by ``offset`` [m] and, if ``lowest_z``
-    is given, vertically so the lowest packaging node sits at ``lowest_z`` [m]. Other nodes of
-    the model keep their reference state."""
-    snapshot.check_fits(model)
+    is given, vertically so the lowest packaging node sits at ``lowest_z`` [m].
+
+    The snapshot's mesh is the model's nodes ``first_node .. first_node + n - 1`` (n = the
+    snapshot's node count; ``first_node`` is the smallest id of the
+    :class:`~flexparcel.consignments.build.Consignment` that :func:`add_consignment` returned
+    for it, 0 when it was added first). Nodes outside that range are copied from ``state``
+    (e.g. another consignment already placed) or, by default, keep their reference state.
+    ``state`` itself is not modified."""
+    k = int(first_node)
+    snapshot.check_fits(model, k)
     n = len(snapshot.positions)
     r = np.eye(3) if rotation is None else np.asarray(rotation, float)
-    s = model.initial_state()
-    s.positions[:n] = snapshot.positions @ r.T + np.asarray(offset, float)
-    s.rotations[:n] = np.einsum("ij,njk->nik", r, snapshot.rotations)
+    if state is None:
+        s = model.initial_state()
+    else:
+        if state.positions.shape != (model.node_count, 3):
+            raise ValueError(
+                f"place_snapshot: state has {len(state.positions)} nodes, the model "
+                f"{model.node_count}"
+            )
+        s = state.copy()
+    sl = slice(k, k + n)
+    s.positions[sl] = snapshot.positions @ r.T + np.asarray(offset, float)
+    s.rotations[sl] = np.einsum("ij,njk->nik", r, snapshot.rotations)
     if lowest_z is not None:
-        s.positions[:n, 2] += lowest_z - s.positions[:n, 2].min()
+        s.positions[sl, 2] += lowest_z - s.positions[sl, 2].min()
     return s

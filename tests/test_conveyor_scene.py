@@ -1,0 +1,342 @@
+"""The bulk conveyor scene (issue 8): layouts, scene files, several consignments placed from
+snapshots, a short four-consignment run through the CLI, and the benchmark scaling helper.
+
+One assembly of the small example consignment (20 mm shells) is shared by the module; the
+four-consignment run is 10 ms of simulated time (about 30 s wall on the 2-core machine): four
+copies arrive at belt speed a few mm upstream of the two deflectors, so each touches one within
+the first 2 ms and is pushed along it.
+"""
+
+import json
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flexparcel.cli import main
+from flexparcel.consignments.build import ConsignmentBuild
+from flexparcel.consignments.snapshot import SnapshotError, load_snapshot, place_snapshot
+from flexparcel.consignments.userfile import load_consignment_file
+from flexparcel.scenarios.conveyor import ConveyorScene
+from flexparcel.scenarios.conveyor_scene import (
+    Placement,
+    SceneFileError,
+    SceneLayout,
+    build_conveyor_model,
+    check_layout,
+    default_layout,
+    footprint,
+    load_scene_file,
+    paper_conveyor,
+    throughput_layout,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "consignment_small.toml"
+SCENE = ROOT / "examples" / "conveyor_scene.toml"
+PRESETS = {k: ConsignmentBuild.of(k) for k in ("KPBW", "PB", "KP", "BW")}
+
+
+# ------------------------------------------------------------------------------ layouts
+
+
+def test_default_layout_queues_the_four_upstream_of_the_first_deflector():
+    conveyor = paper_conveyor()
+    layout = default_layout(PRESETS, conveyor)
+    assert [p.name for p in layout.placements] == ["KPBW", "PB", "KP", "BW"]
+    check_layout(layout, PRESETS)  # on the belt, clear of deflectors and of each other
+    ends = []
+    for p in layout.placements:
+        x0, x1, _, _ = footprint(PRESETS[p.consignment])
+        ends.append((p.x + x0, p.x + x1))
+        assert p.y == 0.0 and p.yaw_deg == 0.0 and p.speed == 0.0
+    # leading one 50 mm before the first deflector root, 50 mm gaps, queue within the belt
+    assert ends[0][1] == pytest.approx(conveyor.deflector_x[0] - 0.05)
+    for (a0, _), (_, b1) in zip(ends[:-1], ends[1:], strict=True):
+        assert a0 - b1 == pytest.approx(0.05)
+    assert ends[-1][0] > 0.0
+    # the paper's deflectors: 45 deg, second one from the other side, tips on the belt
+    g = conveyor.deflectors()
+    assert conveyor.deflector_angle_deg == 45.0 and conveyor.belt_speed == 1.6
+    assert g[0].root[1] > 0 > g[1].root[1] and g[1].tip[0] < conveyor.belt_length
+
+
+def test_default_layout_that_does_not_fit_names_the_room_needed():
+    short = ConveyorScene(deflector_x=(0.5, 1.5))
+    with pytest.raises(ValueError, match=r"needs 1\.\d+ m upstream of the first deflector"):
+        default_layout(PRESETS, short)
+
+
+@pytest.mark.parametrize(
+    ("placements", "message"),
+    [
+        ([Placement("a", "KPBW", 1.0), Placement("b", "PB", 1.1)], "'a' and 'b' overlap"),
+        ([Placement("a", "XX", 1.0)], r"unknown consignment 'XX'; allowed: KPBW, PB, KP, BW"),
+        ([Placement("a", "KPBW", 0.05)], r"must lie on the belt, x in \[0, "),
+        ([Placement("a", "KPBW", 1.0, y=0.25)], r"must lie on the belt, y in \[-0.3, 0.3\]"),
+        ([Placement("a", "KPBW", 1.62, y=0.15)], "overlaps deflector 0"),
+    ],
+)
+def test_bad_layouts_name_the_placement(placements, message):
+    layout = SceneLayout(paper_conveyor(), tuple(placements))
+    with pytest.raises(ValueError, match=message):
+        check_layout(layout, PRESETS)
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda: Placement("a", "KP", 1.0, yaw_deg=400), r"yaw_deg must be in \[-360, 360\]"),
+        (lambda: Placement("a", "KP", 1.0, speed=-1), r"speed must be in \[0, 10\] m/s"),
+        (lambda: Placement("", "KP", 1.0), "Placement.name must be a non-empty string"),
+        (lambda: Placement("a", "KP", float("nan")), "x must be finite"),
+        (
+            lambda: SceneLayout(
+                paper_conveyor(), (Placement("a", "KP", 1), Placement("a", "BW", 2))
+            ),
+            r"duplicate name\(s\) \['a'\]",
+        ),  # fmt: skip
+        (lambda: SceneLayout(paper_conveyor(), ()), "at least one placement"),
+        (lambda: paper_conveyor(belt_speed=12), r"belt_speed must be in \[0, 10\] m/s"),
+        (lambda: paper_conveyor(deflector_angle_deg=5), r"deflector_angle_deg must be in \[10"),
+    ],
+)
+def test_bad_placements_and_conveyors_name_the_field_and_range(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_throughput_layout_makes_the_belt_long_enough():
+    small = load_consignment_file(EXAMPLE)
+    layout = throughput_layout(small, 20)
+    check_layout(layout, {"c": small})
+    assert len(layout.placements) == 20
+    assert layout.conveyor.deflector_x[0] > max(p.x for p in layout.placements)
+    with pytest.raises(ValueError, match=r"count must be an integer in \[1, 200\]"):
+        throughput_layout(small, 0)
+
+
+# ------------------------------------------------------------------------------ scene files
+
+
+def _scene(tmp_path, text: str) -> Path:
+    p = tmp_path / "scene.toml"
+    p.write_text(text)
+    return p
+
+
+HEAD = "format_version = 1\n"
+
+
+def test_example_scene_file():
+    s = load_scene_file(SCENE)
+    assert [p.name for p in s.placements] == ["a", "b", "c", "d"]
+    assert s.consignments == {"consignment_small": str(EXAMPLE.resolve())}
+    assert s.conveyor.deflector_x == (0.3, 0.45) and s.conveyor.belt_speed == 1.6
+    assert s.t_end == pytest.approx(0.012) and s.placements[0].speed == 1.6
+    builds = {"consignment_small": load_consignment_file(EXAMPLE)}
+    check_layout(SceneLayout(s.conveyor, s.placements, s.gap_above_belt), builds)
+
+
+def test_scene_file_default_queue_takes_the_paper_conveyor(tmp_path):
+    s = load_scene_file(_scene(tmp_path, HEAD + 'consignments = ["KPBW", "BW"]\n'
+                               "[belt]\nspeed_m_s = 2.0\n"))  # fmt: skip
+    assert s.placements == () and list(s.consignments) == ["KPBW", "BW"]
+    assert s.conveyor == paper_conveyor(2.0, 45.0)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("format_version = 1\nconsignments = [", "not valid TOML"),
+        ('consignments = ["KP"]\n', "format_version must be 1"),
+        (HEAD + 'consignments = ["KP"]\ncolour = 3\n', r"unknown key\(s\) \['colour'\]"),
+        (HEAD, "give either consignments"),
+        (
+            HEAD + 'consignments = ["KP"]\n[belt]\nspeed_m_s = 20\n',
+            r"speed_m_s must be in \[0, 10\] m/s, got 20",
+        ),  # fmt: skip
+        (
+            HEAD + 'consignments = ["KP"]\n[deflectors]\nangle_deg = 95\n',
+            r"angle_deg must be in \[10, 90\] deg",
+        ),  # fmt: skip
+        (HEAD + 'consignments = ["KP"]\n[belt]\nlength = 3\n', r"\[belt\]: unknown key"),
+        (HEAD + 'consignments = ["KP"]\n[deflectors]\nx_m = 1.0\n', "x_m must be a non-empty"),
+        (HEAD + '[[consignment]]\nconsignment = "KP"\n', "consignment\\[0\\]: missing key 'x_m'"),
+        (
+            HEAD + '[[consignment]]\nconsignment = "KP"\nx_m = "1"\n',
+            r"consignment\[0\].x_m must be a number",
+        ),  # fmt: skip
+        (
+            HEAD + '[[consignment]]\nconsignment = "KP"\nx_m = 1\nyaw_deg = 720\n',
+            r"yaw_deg must be in \[-360, 360\] deg",
+        ),  # fmt: skip
+        (
+            HEAD + '[[consignment]]\nconsignment = "KP"\nx_m = 1\n'
+            '[[consignment]]\nconsignment = "KP"\nx_m = 2\n',
+            r"consignment\[1\].name 'KP' is used by consignment\[0\]",
+        ),  # fmt: skip
+        (HEAD + 't_end_s = 0\nconsignments = ["KP"]\n', r"t_end_s must be in \[0.001, 10\] s"),
+    ],
+)
+def test_bad_scene_files_name_the_file_and_key(tmp_path, text, message):
+    path = _scene(tmp_path, text)
+    with pytest.raises(SceneFileError, match=message) as info:
+        load_scene_file(path)
+    assert str(path) in str(info.value)
+
+
+def test_missing_scene_file(tmp_path):
+    with pytest.raises(FileNotFoundError, match="nothere.toml"):
+        load_scene_file(tmp_path / "nothere.toml")
+
+
+# ------------------------------------------------------------------------------ model + run
+
+
+@pytest.fixture(scope="module")
+def snapshot_dir(tmp_path_factory) -> Path:
+    """DIR/consignment_small/snapshot.npz: the small example, assembled once."""
+    d = tmp_path_factory.mktemp("snaps")
+    out = d / "consignment_small"
+    assert main(["assemble", str(EXAMPLE), "--out", str(out), "--no-progress"]) == 0
+    return d
+
+
+def test_place_snapshot_at_a_node_offset(snapshot_dir):
+    snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
+    key = "consignment_small"
+    layout = SceneLayout(
+        ConveyorScene(belt_length=1.2, deflector_x=(0.6, 0.75)),
+        (Placement("a", key, 0.2, 0.1, 90.0), Placement("b", key, 0.4, -0.1, speed=1.0)),
+    )
+    cm = build_conveyor_model({key: snap}, layout)
+    a, b = cm.consignments["a"], cm.consignments["b"]
+    n = len(snap.positions)
+    assert a.node_ids.max() < b.node_ids.min() and len(b.node_ids) == n
+    s = cm.state0
+    pb = s.positions[b.node_ids]
+    # b: the settled shape, moved rigidly (yaw 0); lowest packaging contact surface 1 mm up
+    shift = pb - snap.positions
+    assert np.allclose(shift, shift[0], atol=1e-12)
+    assert shift[0, :2] == pytest.approx([0.4, -0.1])
+    assert pb[:, 2].min() == pytest.approx(b.contact_radius + 1e-3)
+    assert np.all(s.velocities[b.node_ids, 0] == 1.0) and np.all(s.velocities[a.node_ids] == 0)
+    # a: turned 90 deg about z (x -> y), the rotations turned with it
+    pa = s.positions[a.node_ids]
+    assert np.ptp(pa[:, 1]) == pytest.approx(np.ptp(snap.positions[:, 0]))
+    assert np.allclose(s.rotations[a.node_ids[0]], layout.placements[0].rotation()
+                       @ snap.rotations[0])  # fmt: skip
+    # contacts: belt + 2 deflectors per consignment, and the pair both ways
+    assert cm.consignment_pairs == [("a", "b")]
+    # the old callers' default (first node 0) still checks the fit
+    with pytest.raises(SnapshotError, match=f"its {n} nodes from node {b.node_ids.min() + 1}"):
+        place_snapshot(snap, cm.model, first_node=int(b.node_ids.min()) + 1)
+    moved = place_snapshot(snap, cm.model, first_node=int(b.node_ids.min()), state=s)
+    assert np.allclose(moved.positions[a.node_ids], pa)  # others copied from `state`
+
+
+def test_pair_reach_keeps_only_neighbours(snapshot_dir):
+    snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
+    layout = throughput_layout(snap.build, 4)
+    cm = build_conveyor_model({"c": snap}, layout, pair_reach=0.06)
+    assert cm.consignment_pairs == [("c0", "c1"), ("c1", "c2"), ("c2", "c3")]
+    assert len(build_conveyor_model({"c": snap}, layout).consignment_pairs) == 6
+
+
+@pytest.fixture(scope="module")
+def conveyor_run(snapshot_dir, tmp_path_factory):
+    out = tmp_path_factory.mktemp("conveyor") / "run"
+    args = ["run", "conveyor", "--scene", str(SCENE), "--snapshot-dir", str(snapshot_dir),
+            "--t-end", "0.01", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    return out, json.loads((out / "responses.json").read_text())
+
+
+def test_four_consignments_move_downstream_and_are_deflected(conveyor_run):
+    _, r = conveyor_run
+    assert r["simulated_s"] == pytest.approx(0.01) and r["steps"] > 0 and r["wall_s"] > 0
+    cons = r["consignments"]
+    assert list(cons) == ["a", "b", "c", "d"]
+    for name, c in cons.items():
+        x, y = np.array(c["trajectory"]["x"]), np.array(c["trajectory"]["y"])
+        assert x[-1] - x[0] > 2e-3, name  # downstream
+        k = 0 if name in ("a", "b") else 1  # a, b start beside deflector 0 (y > 0), c, d 1
+        assert c["deflector_contact_time"][k] > 0.0, name
+        assert c["deflector_contact_time"][1 - k] == 0.0, name
+        # pushed along the face towards the centre line: |y| falls (the belt alone drives
+        # only x and every copy starts with v_y = 0; the 12 ms run of the example file
+        # moved them 3 mm)
+        assert abs(y[-1]) < abs(y[0]) - 1e-3, name
+        assert c["peak_contact_force"] > 0.0, name
+    assert r["parameters"]["belt_speed_m_s"] == 1.6 and r["parameters"]["t_end_s"] == 0.01
+    assert r["friction"]["a"]["belt"] == [0.5, 0.4]  # bubble_wrap on PU, table default
+
+
+def test_conveyor_cli_writes_its_files(conveyor_run, capsys):
+    out, r = conveyor_run
+    for name in ("responses.json", "results.npz", "paraview/conveyor.pvd",
+                 "paraview/contents.pvd", "snapshots.png", "trajectories.png",
+                 "animation.gif"):  # fmt: skip
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    assert set(r["files"]) >= {"snapshots", "trajectories", "animation", "paraview"}
+    from PIL import Image
+
+    with Image.open(out / "animation.gif") as gif:
+        assert gif.n_frames > 1
+
+
+def test_conveyor_cli_reuses_cached_snapshots(snapshot_dir, tmp_path, capsys):
+    # a snapshot already in DIR/snapshots/ is reused (no assembly); a --snapshot-dir one of
+    # another element size is refused
+    out = tmp_path / "run"
+    cache = out / "snapshots" / "consignment_small_20mm"
+    cache.mkdir(parents=True)
+    shutil.copy(snapshot_dir / "consignment_small" / "snapshot.npz", cache / "snapshot.npz")
+    from flexparcel.cli.conveyor_job import snapshot_for
+
+    build = load_consignment_file(EXAMPLE)
+    snap, source = snapshot_for("consignment_small", build, out, log=lambda m: None)
+    assert source == str(cache / "snapshot.npz")
+    other = replace(build, element_size=0.03)
+    with pytest.raises(ValueError, match="assembled with 20 mm elements, not 30 mm"):
+        snapshot_for("consignment_small", other, out, snapshot_dir=snapshot_dir,
+                     element_size_given=True)  # fmt: skip
+
+
+def _error(capsys, args) -> str:
+    assert main(args) == 2
+    return capsys.readouterr().err
+
+
+def test_conveyor_cli_rejects_bad_input_before_running(tmp_path, capsys):
+    out = ["--out", str(tmp_path / "o")]
+    assert "--belt-speed must be in [0, 10] m/s, got 12" in _error(
+        capsys, ["run", "conveyor", "--belt-speed", "12", *out]
+    )
+    assert "--deflector-angle must be in [10, 90] deg, got 5" in _error(
+        capsys, ["run", "conveyor", "--deflector-angle", "5", *out]
+    )
+    assert "unknown consignment 'XX'" in _error(
+        capsys, ["run", "conveyor", "--consignments", "KPBW,XX", *out]
+    )
+    assert "given twice" in _error(capsys, ["run", "conveyor", "--consignments", "KP,KP", *out])
+    bad = tmp_path / "bad.toml"
+    bad.write_text("format_version = 1\n[belt]\nspeed_m_s = -1\n")
+    err = _error(capsys, ["run", "conveyor", "--scene", str(bad), *out])
+    assert str(bad) in err and "speed_m_s must be in [0, 10] m/s, got -1" in err
+    assert "only apply to 'flexparcel run conveyor'" in _error(
+        capsys, ["run", "swing", "--consignment", "KP", "--belt-speed", "1", *out]
+    )
+    assert "do not apply to the conveyor" in _error(
+        capsys, ["run", "conveyor", "--consignment", "KP", *out]
+    )
+    # a layout that does not fit fails before any (minutes long) assembly
+    short = tmp_path / "short.toml"
+    short.write_text('format_version = 1\nconsignments = ["KPBW", "PB", "KP", "BW"]\n'
+                     "[belt]\nlength_m = 3.0\n[deflectors]\nx_m = [0.5, 1.5]\n")  # fmt: skip
+    assert "the queue needs 1.3" in _error(capsys, ["run", "conveyor", "--scene", str(short),
+                                                    *out])  # fmt: skip
+    assert not (tmp_path / "o" / "snapshots").exists()
