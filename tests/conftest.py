@@ -71,3 +71,17 @@ def assert_rests_at_contact_thickness(model, sheet, t=SHEET_T):
     assert z.min() > 0.0
     assert abs(np.median(z[-1]) - t) < 5e-5
     return r
+
+
+SMALL_CONSIGNMENT = Path(__file__).resolve().parents[1] / "examples" / "consignment_small.toml"
+
+
+@pytest.fixture(scope="session")
+def small_assembly(tmp_path_factory) -> Path:
+    """``flexparcel assemble`` of the small example consignment (20 mm shells), run once per
+    session (about a minute): the directory with snapshot.npz, assembly.json, pictures."""
+    from flexparcel.cli import main
+
+    out = tmp_path_factory.mktemp("small") / "assembly"
+    assert main(["assemble", str(SMALL_CONSIGNMENT), "--out", str(out), "--no-progress"]) == 0
+    return out

@@ -154,10 +154,8 @@ def test_resolve_presets_and_files(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def assembled(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("small") / "assembly"
-    assert main(["assemble", str(EXAMPLE), "--out", str(out), "--no-progress"]) == 0
-    return out
+def assembled(small_assembly) -> Path:
+    return small_assembly  # conftest: the CLI's assemble of the example, once per session
 
 
 def test_assemble_writes_snapshot_json_paraview_and_picture(assembled):

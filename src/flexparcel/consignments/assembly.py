@@ -161,14 +161,15 @@ def assemble(
     n = model_b.node_count
     info = {
         "settings": asdict(st),
-        "opening_time_s": t_open,
-        "opening_pressure_Pa": st.opening_pressure * opening(t_open),
-        "end_time_s": s.time,
-        "kinetic_energy_J": kin,
-        "steps": steps,
+        # plain Python numbers: the info goes to JSON and must read back equal
+        "opening_time_s": float(t_open),
+        "opening_pressure_Pa": float(st.opening_pressure * opening(t_open)),
+        "end_time_s": float(s.time),
+        "kinetic_energy_J": float(kin),
+        "steps": int(steps),
         "wall_s": time.perf_counter() - wall0,
-        "packaging_mass_kg": c.packaging_mass,
-        "content_mass_kg": c.content_mass,
+        "packaging_mass_kg": float(c.packaging_mass),
+        "content_mass_kg": float(c.content_mass),
     }
     return Snapshot(build, model_b.positions0[:n].copy(), s.positions.copy(),
                     s.rotations.copy(), info)  # fmt: skip

@@ -155,7 +155,9 @@ def _builder(snapshot: Snapshot, p: Mapping[str, float]) -> tuple[ModelBuilder, 
 def _options(options: IntegratorOptions | None) -> IntegratorOptions:
     # numerical dissipation of the high contact frequencies instead of resolving every node's
     # contact oscillation (see IntegratorOptions.impact_limit)
-    return options or IntegratorOptions(rho_inf=0.5, impact_limit="rigid", error_estimate="smooth")
+    return options or IntegratorOptions(
+        rho_inf=0.5, impact_limit="rigid", error_estimate="smooth", newton_relaxation=True
+    )
 
 
 def swing_test(
