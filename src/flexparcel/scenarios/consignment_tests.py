@@ -239,17 +239,23 @@ def drop_test(
     res = simulate(model, t_end, dt_out=dt_out, options=_options(options), state=s0,
                    progress=progress)  # fmt: skip
     wall = time.perf_counter() - wall
-    rebound = rebound_height(model, res, c)
+    # the vertical drop touches first with the edge's line contact, whose radius is larger
+    touch = c.contact_radius if rot is None else max(c.contact_radius, strip / 2)
+    rebound = rebound_height(model, res, c, touch_radius=touch)
     return TestRun(f"drop-{orientation}", res, {"rebound_mm": rebound * 1e3}, p, model, c, wall)
 
 
-def rebound_height(model: Model, res: SimulationResult, c: Consignment) -> float:
+def rebound_height(
+    model: Model, res: SimulationResult, c: Consignment, touch_radius: float | None = None
+) -> float:
     """Rebound [m]: the rise of the centre of mass after the impact above its height at the
-    first touch (the lowest packaging node reaching its contact radius); 0 without a touch."""
+    first touch (the lowest packaging node reaching ``touch_radius`` [m], default the contact
+    radius); 0 without a touch."""
     ids = c.node_ids
     m = model.mass[ids, 0]
     zc = res.positions[:, ids, 2] @ m / m.sum()
-    low = res.positions[:, c.packaging, 2].min(axis=1) - c.contact_radius
+    radius = c.contact_radius if touch_radius is None else touch_radius
+    low = res.positions[:, c.packaging, 2].min(axis=1) - radius
     touch = np.flatnonzero(low <= 0.0)
     if touch.size == 0:
         return 0.0
