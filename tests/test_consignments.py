@@ -197,3 +197,21 @@ def test_horizontal_drop_rebounds_well_below_the_drop_height(small):
     low = run.result.positions[:, run.consignment.packaging, 2].min(axis=1)
     assert low.min() > run.consignment.contact_radius - 0.1e-3
     assert low.min() < run.consignment.contact_radius  # and it did reach the plate
+
+
+def test_rebound_counts_from_the_first_touch_of_the_given_radius():
+    from types import SimpleNamespace
+
+    from flexparcel.scenarios.consignment_tests import rebound_height
+
+    # one node falling to z = 2 mm (an edge contact of radius 2 mm touches there), pushed back
+    # up to 5 mm, then down again: the rebound is 3 mm above the touch; with the packaging's
+    # 0.25 mm contact radius as the threshold it never "touches" and reads 0
+    z = np.array([10.0, 6.0, 2.0, 1.5, 2.0, 5.0, 4.0]) * 1e-3
+    pos = np.zeros((z.size, 1, 3))
+    pos[:, 0, 2] = z
+    model = SimpleNamespace(mass=np.ones((1, 6)))
+    res = SimpleNamespace(positions=pos)
+    c = SimpleNamespace(node_ids=np.array([0]), packaging=np.array([0]), contact_radius=0.25e-3)
+    assert rebound_height(model, res, c) == 0.0
+    assert rebound_height(model, res, c, touch_radius=2e-3) == pytest.approx(3e-3)
