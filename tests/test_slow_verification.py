@@ -1,5 +1,7 @@
 """Longer verification runs (``make slow``)."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -35,3 +37,15 @@ def test_sze_31_finer_mesh_approaches_the_elastica():
         reference_dir() / "verification/sze2004_cantilever_end_shear.csv", nx=32
     )
     assert np.all(np.abs(r["w"] - r["ref_w"]) <= 3e-3 * r["ref_w"] + 5e-4)
+
+
+@pytest.mark.slow
+def test_bench_consignment_assembly_case_reports_each_consignment():
+    from flexparcel.bench import run_case
+
+    small = Path(__file__).resolve().parents[1] / "examples" / "consignment_small.toml"
+    r = run_case("consignment-assembly", consignments=[str(small)])
+    (row,) = r["rows"]
+    assert row["consignment"] == "small" and "error" not in row, row
+    assert row["kinetic_energy_J"] < 1e-6 and row["steps"] > 0 and row["wall_s"] > 0
+    assert r["failed"] == [] and r["wall_s"] == pytest.approx(row["wall_s"])

@@ -303,14 +303,129 @@ def _conveyor_scaling_case(
     return table
 
 
+def _consignment_assembly(
+    quick: bool = False,
+    progress=None,
+    *,
+    consignments=("KPBW", "PB", "KP", "BW"),
+    element_size_mm: float | None = None,
+) -> dict:
+    """Bench case ``consignment-assembly``: open, fill, close and settle each consignment
+    (presets or .toml files) at its own mesh size (paper: 10 mm, 5 mm for BW), or at
+    ``element_size_mm`` (``quick``: 25 mm). A consignment that fails to assemble is reported
+    with its error, not dropped. The paper gives no RecurDyn time for the assembly."""
+    from flexparcel.consignments.assembly import AssemblyError, assemble
+    from flexparcel.consignments.build import add_consignment
+    from flexparcel.consignments.userfile import resolve_consignment
+    from flexparcel.model.builder import ModelBuilder
+
+    if element_size_mm is None and quick:
+        element_size_mm = 25.0
+    size = None if element_size_mm is None else element_size_mm * 1e-3
+    rows = []
+    for ref in consignments:
+        build = resolve_consignment(str(ref), size)
+        b = ModelBuilder()
+        add_consignment(b, build)
+        dof = b.finalize().dof_count
+        t0 = time.perf_counter()
+        row = {"consignment": build.spec.id, "element_size_mm": build.element_size * 1e3,
+               "dof_count": int(dof)}  # fmt: skip
+        try:
+            snap = assemble(build)
+        except AssemblyError as exc:
+            row.update(error=str(exc), wall_s=time.perf_counter() - t0)
+        else:
+            info = snap.info
+            row.update(wall_s=time.perf_counter() - t0, simulated_s=info["end_time_s"],
+                       steps=info["steps"], opening_time_s=info["opening_time_s"],
+                       kinetic_energy_J=info["kinetic_energy_J"])  # fmt: skip
+        rows.append(row)
+    done = [r for r in rows if "error" not in r]
+    return {
+        "case": "consignment-assembly",
+        "description": "opening forces, content contact on, release, settle to rest "
+        "(flexparcel.consignments.assembly), per consignment",
+        "rows": rows,
+        "simulated_s": sum(r["simulated_s"] for r in done),
+        "wall_s": sum(r["wall_s"] for r in rows),
+        "dof_count": max(r["dof_count"] for r in rows),
+        "steps": sum(r["steps"] for r in done),
+        "newton_iterations": None,  # the assembly reports steps only
+        "failed": [r["consignment"] for r in rows if "error" in r],
+        "speedup_vs_recurdyn": None,
+    }
+
+
+def _kpbw_tests(
+    quick: bool = False,
+    progress=None,
+    *,
+    element_size_mm: float | None = None,
+    snapshot: str | Path | None = None,
+) -> dict:
+    """Bench case ``kpbw-tests``: KP/BW assembled (or ``snapshot``), then its swing (1.4 s),
+    vertical and horizontal drop (200 mm, 0.3 s) with the paper's Table 6 parameters; wall
+    times next to RecurDyn's (384 / 125 / 76 s on 4 cores, scaled to the simulated time).
+    ``quick``: 25 mm mesh, 0.1 s swing, 0.22 s drops (just past the impact)."""
+    from flexparcel.consignments.assembly import assemble
+    from flexparcel.consignments.snapshot import load_snapshot
+    from flexparcel.consignments.userfile import resolve_consignment
+    from flexparcel.scenarios.consignment_tests import TABLE6_VALUES, drop_test, swing_test
+
+    if element_size_mm is None and quick:
+        element_size_mm = 25.0
+    size = None if element_size_mm is None else element_size_mm * 1e-3
+    t0 = time.perf_counter()
+    snap = load_snapshot(snapshot) if snapshot else assemble(resolve_consignment("KPBW", size))
+    assembly_wall = time.perf_counter() - t0
+    recurdyn = {"swing": (384.0, 1.4), "drop-vertical": (125.0, 0.3),
+                "drop-horizontal": (76.0, 0.3)}  # fmt: skip
+    t_end = (
+        {"swing": 0.1, "drop-vertical": 0.22, "drop-horizontal": 0.22}
+        if quick
+        else {k: v[1] for k, v in recurdyn.items()}
+    )
+    rows = []
+    for test in recurdyn:
+        p = dict(TABLE6_VALUES)
+        if test == "swing":
+            run = swing_test(snap, p, t_end=t_end[test], progress=progress)
+        else:
+            run = drop_test(snap, test.split("-")[1], p, t_end=t_end[test], progress=progress)
+        summ = run.summary()
+        rd = recurdyn[test][0] * t_end[test] / recurdyn[test][1]
+        rows.append({**{k: v for k, v in summ.items() if k not in ("parameters",
+                     "parameter_units")}, "recurdyn_wall_s": rd,
+                     "speedup_vs_recurdyn": rd / summ["wall_s"],
+                     "simulated_s_per_wall_s": summ["simulated_s"] / summ["wall_s"]})  # fmt: skip
+    return {
+        "case": "kpbw-tests",
+        "description": "KP/BW swing, vertical and horizontal drop, Table 6 parameters",
+        "element_size_mm": snap.build.element_size * 1e3,
+        "assembly_wall_s": assembly_wall,
+        "rows": rows,
+        "simulated_s": sum(r["simulated_s"] for r in rows),
+        "wall_s": sum(r["wall_s"] for r in rows),
+        "dof_count": int(6 * len(snap.positions)),
+        "steps": sum(r["steps"] for r in rows),
+        "newton_iterations": sum(r["newton_iterations"] for r in rows),
+        "speedup_vs_recurdyn": sum(r["recurdyn_wall_s"] for r in rows)
+        / sum(r["wall_s"] for r in rows),
+    }
+
+
 CASES: dict[str, Callable[..., dict]] = {
     "sheet-swing": _sheet_swing,
     "envelope-drop": _envelope_drop,
     "conveyor": _conveyor,
     "conveyor-scaling": _conveyor_scaling_case,
+    "consignment-assembly": _consignment_assembly,
+    "kpbw-tests": _kpbw_tests,
 }
 DEFAULT_CASES = ("sheet-swing", "envelope-drop")
-"""What ``flexparcel bench`` runs without names (the conveyor cases are long: name them)."""
+"""What ``flexparcel bench`` runs without names (the conveyor and consignment cases are long:
+name them)."""
 
 
 def run_case(name: str, quick: bool = False, progress=None, **options) -> dict:

@@ -105,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
             "element_size_mm": 25.0 if args.element_size is None else args.element_size,
             "start_speed": args.start_speed,
         },
+        "consignment-assembly": {"element_size_mm": args.element_size},
+        "kpbw-tests": {"element_size_mm": args.element_size},
         "conveyor-scaling": {
             **common,
             "counts": counts,
