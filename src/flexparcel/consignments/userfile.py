@@ -33,7 +33,6 @@ loads here unchanged.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import fields, replace
 from pathlib import Path
 
@@ -44,6 +43,7 @@ from flexparcel.consignments.build import (
     preset,
 )
 from flexparcel.consignments.materials import PackagingMaterial, packaging_material
+from flexparcel.io.tomlfile import read_toml
 from flexparcel.selection.export import (
     CONSIGNMENT_FORMAT_VERSION,
     ConsignmentFileError,
@@ -91,15 +91,7 @@ def load_consignment_file(path: str | Path) -> ConsignmentBuild:
     out-of-range key; ``FileNotFoundError`` for a missing file.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"consignment file not found: {path}")
-    try:
-        with path.open("rb") as fh:
-            doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConsignmentFileError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise ConsignmentFileError(f"{path}: not a UTF-8 text file ({exc})") from None
+    doc = read_toml(path, ConsignmentFileError, "consignment file")
 
     def fail(msg: str) -> ConsignmentFileError:
         return ConsignmentFileError(f"{path}: {msg}")

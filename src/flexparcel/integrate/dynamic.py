@@ -586,9 +586,7 @@ class GeneralizedAlpha:
             # max(F_NC + F_ND, R_df F_NC) has a kink) make full Newton steps cycle with
             # corrections of constant size: under-relax the next corrections until the
             # iteration contracts again
-            if not self.opt.newton_relaxation:
-                pass
-            elif it >= 2 and 0.85 < rate < 1.5:
+            if self.opt.newton_relaxation and it >= 2 and 0.85 < rate < 1.5:
                 relax = max(0.125, 0.5 * relax)
             elif rate < 0.5:
                 relax = min(1.0, 2.0 * relax)

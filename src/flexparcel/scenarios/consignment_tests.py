@@ -160,6 +160,14 @@ def _options(options: IntegratorOptions | None) -> IntegratorOptions:
     )
 
 
+def _run(model, s0, t_end, dt_out, options, progress) -> tuple[SimulationResult, float]:
+    """The test's simulation from ``s0`` and its wall time [s]."""
+    wall = time.perf_counter()
+    res = simulate(model, t_end, dt_out=dt_out, options=_options(options), state=s0,
+                   progress=progress)  # fmt: skip
+    return res, time.perf_counter() - wall
+
+
 def swing_test(
     snapshot: Snapshot,
     parameters: Mapping[str, float] | Sequence[str] | None = None,
@@ -178,11 +186,7 @@ def swing_test(
     x_clamp = x.min() + clamped_length
     b.clamp(c.packaging[x <= x_clamp + 1e-9])
     model = b.finalize()
-    s0 = place_snapshot(snapshot, model)
-    wall = time.perf_counter()
-    res = simulate(model, t_end, dt_out=dt_out, options=_options(options), state=s0,
-                   progress=progress)  # fmt: skip
-    wall = time.perf_counter() - wall
+    res, wall = _run(model, place_snapshot(snapshot, model), t_end, dt_out, options, progress)
     free_end = res.positions[:, c.edge, 0].mean(axis=1)
     first, second = swing_responses(free_end - x_clamp)
     return TestRun("swing", res, {"first_swing_mm": first * 1e3, "second_swing_mm": second * 1e3},
@@ -235,10 +239,7 @@ def drop_test(
         b.add_edge_contact(c.edge, plate, ground, radius=strip / 2)
     model = b.finalize()
     s0 = place_snapshot(snapshot, model, rotation=rot, lowest_z=drop_height + c.contact_radius)
-    wall = time.perf_counter()
-    res = simulate(model, t_end, dt_out=dt_out, options=_options(options), state=s0,
-                   progress=progress)  # fmt: skip
-    wall = time.perf_counter() - wall
+    res, wall = _run(model, s0, t_end, dt_out, options, progress)
     # the vertical drop touches first with the edge's line contact, whose radius is larger
     touch = c.contact_radius if rot is None else max(c.contact_radius, strip / 2)
     rebound = rebound_height(model, res, c, touch_radius=touch)

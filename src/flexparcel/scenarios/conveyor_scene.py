@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import math
 import time
-import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -53,6 +52,7 @@ from flexparcel.consignments.build import (
 from flexparcel.consignments.snapshot import Snapshot, place_snapshot
 from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
+from flexparcel.io.tomlfile import read_toml
 from flexparcel.model.builder import Model, ModelBuilder, State
 from flexparcel.scenarios.conveyor import ConveyorParts, ConveyorScene, add_conveyor
 from flexparcel.scenarios.conveyor_responses import ConsignmentResponse, conveyor_responses
@@ -431,19 +431,11 @@ def load_scene_file(path: str | Path) -> SceneFile:
     file and the key (and the allowed range) for anything invalid. Belt and deflector keys
     not given take :func:`paper_conveyor`'s values (for the given speed and angle)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"scene file not found: {path}")
+    doc = read_toml(path, SceneFileError, "scene file")
 
     def fail(msg: str) -> SceneFileError:
         return SceneFileError(f"{path}: {msg}")
 
-    try:
-        with path.open("rb") as fh:
-            doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise fail(f"not valid TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise fail(f"not a text file: {exc}") from None
     unknown = sorted(set(doc) - _TOP_KEYS)
     if unknown:
         raise fail(f"unknown key(s) {unknown}; allowed: {', '.join(sorted(_TOP_KEYS))}")

@@ -34,13 +34,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 
 from flexparcel.contact.law import ContactLaw
+from flexparcel.io.tomlfile import read_toml
 
 __all__ = [
     "BELT",
@@ -235,13 +235,7 @@ def load_friction_table(
     outside [0, 2] or mu_dynamic > mu_static; ``FileNotFoundError`` for a missing file.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"friction table file not found: {path}")
-    try:
-        with path.open("rb") as fh:
-            doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise FrictionTableError(f"{path}: not valid TOML: {exc}") from None
+    doc = read_toml(path, FrictionTableError, "friction table file")
     table = dict(base if base is not None else DEFAULT_FRICTION_TABLE)
     for material, rows in doc.items():
         try:

@@ -11,13 +11,13 @@ from __future__ import annotations
 import csv
 import math
 import re
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
+from flexparcel.io.tomlfile import read_toml
 from flexparcel.selection.clustering import CentroidTable, DiverseSelection, SurveyClustering
 
 __all__ = [
@@ -194,13 +194,7 @@ def read_consignment_toml(path: str | Path) -> ConsignmentSpec:
     missing, unknown, mistyped or out-of-range key; ``FileNotFoundError`` for a missing file.
     """
     path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"consignment file not found: {path}")
-    try:
-        with path.open("rb") as fh:
-            doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConsignmentFileError(f"{path}: not valid TOML: {exc}") from None
+    doc = read_toml(path, ConsignmentFileError, "consignment file")
     version = doc.pop("format_version", None)
     if version != CONSIGNMENT_FORMAT_VERSION:
         raise ConsignmentFileError(
