@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from flexparcel.consignments.assembly import AssemblySettings, assemble, content_scale_for
 from flexparcel.consignments.build import (
     FIT_CLEARANCE,
     GLUED_STRIP_WIDTH,
@@ -215,3 +216,30 @@ def test_rebound_counts_from_the_first_touch_of_the_given_radius():
     c = SimpleNamespace(node_ids=np.array([0]), packaging=np.array([0]), contact_radius=0.25e-3)
     assert rebound_height(model, res, c) == 0.0
     assert rebound_height(model, res, c, touch_radius=2e-3) == pytest.approx(3e-3)
+
+
+# --------------------------------------------------------------------------------------------
+# Growing a content that nearly fills its packaging
+
+
+@pytest.mark.parametrize(("name", "scale"), [("KPBW", 1.0), ("PB", 0.6), ("KP", 0.6), ("BW", 0.6)])
+def test_tight_envelopes_get_a_grown_content(name, scale):
+    # PB, KP, BW: flat envelope side - content side < 3 x content height (a few mm of slack
+    # round the content's section), which no opened, lens-shaped envelope clears
+    assert content_scale_for(ConsignmentBuild.of(name, element_size=0.025)) == scale
+
+
+def test_content_scale_out_of_range_is_refused():
+    with pytest.raises(ValueError, match=r"content_scale must be in \[0.3, 1\]"):
+        AssemblySettings(content_scale=0.2)
+
+
+def test_assembly_grows_a_shrunk_content_back_without_penetration():
+    # the small example opened round a content of 0.6 x its size, which then grows back to
+    # full size inside the closed packaging: the same bounds as the plain assembly above
+    build = load_consignment_file(EXAMPLE)
+    snap = assemble(build, AssemblySettings(content_scale=0.6))
+    assert snap.info["content_scale"] == 0.6
+    assert snap.info["kinetic_energy_J"] < snap.info["settings"]["kinetic_tolerance"]
+    pen = _content_penetration(snap)
+    assert -0.5e-3 < pen < 0.05e-3

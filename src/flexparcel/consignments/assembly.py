@@ -31,7 +31,13 @@ from flexparcel.model.builder import Model, ModelBuilder, State
 from flexparcel.model.schedule import Schedule
 from flexparcel.simulate import simulate
 
-__all__ = ["AssemblySettings", "AssemblyError", "assemble", "opening_clearance"]
+__all__ = [
+    "AssemblySettings",
+    "AssemblyError",
+    "assemble",
+    "content_scale_for",
+    "opening_clearance",
+]
 
 
 class AssemblyError(RuntimeError):
@@ -60,11 +66,31 @@ class AssemblySettings:
     mass_damping: float = 80.0
     """Rayleigh alpha [1/s] during the assembly (critical for modes near 40 rad/s)."""
     tol_displacement: float = 2e-4
+    content_scale: float | None = None
+    """Size of the content (all three dimensions), as a fraction of its real size, while the
+    packaging is opened; it grows back to full size over ``growth_time`` once the contact is on. A
+    content that nearly fills its packaging (PB, KP, BW: the flat envelope is only a few mm
+    longer than the content's length + height) cannot be cleared by opening forces, since an
+    opened envelope's section is a lens, not a rectangle; growing it inside the closed
+    packaging pushes the film into shape instead (for KP it also lifts the content's lower
+    face off the bottom layer, which the glue stripe keeps close to it while the border is
+    pulled up). ``None``: 0.6 when a flat envelope side is
+    shorter than the content side + 2 x its height, else 1 (no growth)."""
+    growth_time: float = 0.1
+    growth_chunks: int = 20
+    """A flexible content grows in this many jumps of its reference geometry (a rigid one
+    grows continuously)."""
 
     def __post_init__(self) -> None:
         for k, v in asdict(self).items():
+            if k == "content_scale" and v is None:
+                continue
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"AssemblySettings.{k} must be > 0, got {v!r}")
+        if self.content_scale is not None and not 0.3 <= self.content_scale <= 1.0:
+            raise ValueError(
+                f"AssemblySettings.content_scale must be in [0.3, 1], got {self.content_scale!r}"
+            )
 
 
 def _model(build: ConsignmentBuild, settings: AssemblySettings, contact: bool,
@@ -78,10 +104,40 @@ def _model(build: ConsignmentBuild, settings: AssemblySettings, contact: bool,
     return b.finalize(), c
 
 
-def _content_extent(c: Consignment, s: State) -> tuple[np.ndarray, np.ndarray]:
-    """Axis-aligned bounds (lo, hi) of the content [m] in state ``s``."""
+def content_scale_for(build: ConsignmentBuild) -> float:
+    """The automatic :attr:`AssemblySettings.content_scale` of ``build``."""
+    spec = build.spec
+    length, width = build.flat_size
+    hc = spec.content_height_mm * 1e-3
+    slack = min(length - spec.content_length_mm * 1e-3, width - spec.content_width_mm * 1e-3)
+    return 0.6 if slack < 3.0 * hc else 1.0
+
+
+def _scale_content(
+    model: Model, c: Consignment, s: State | None, f: float | Schedule, xref_full: list
+) -> None:
+    """Give the content ``f`` times its size (a number, or for a rigid content a
+    Schedule of it): a rigid content through ``Model.box_growth``, a flexible one by scaling
+    its elements' full-size reference geometry ``xref_full`` (one array per solid group) and,
+    if ``s`` is given, its nodes about the content centre."""
     if c.content_body is not None:
-        half = np.asarray(c.content_box) / 2
+        outer = np.asarray(c.content_box, dtype=float) / 2
+        sched = f if isinstance(f, Schedule) else Schedule.constant(f)
+        model.box_growth[:] = [(c.content_body, outer, sched)]
+        return
+    for g, xref0 in zip(model.solid_groups, xref_full, strict=True):
+        g["xref"] = np.ascontiguousarray(xref0 * f)
+    if s is not None:
+        p = s.positions[c.content_nodes]
+        centre = 0.5 * (p.min(axis=0) + p.max(axis=0))
+        s.positions[c.content_nodes] = centre + (p - centre) * f
+
+
+def _content_extent(c: Consignment, s: State, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounds (lo, hi) of the content [m] in state ``s`` (a rigid content with
+    ``scale`` times its size)."""
+    if c.content_body is not None:
+        half = np.asarray(c.content_box) / 2 * scale
         r = s.rotations[c.content_body]
         ext = np.abs(r) @ half
         p = s.positions[c.content_body]
@@ -90,10 +146,11 @@ def _content_extent(c: Consignment, s: State) -> tuple[np.ndarray, np.ndarray]:
     return p.min(axis=0), p.max(axis=0)
 
 
-def opening_clearance(c: Consignment, s: State) -> float:
+def opening_clearance(c: Consignment, s: State, scale: float = 1.0) -> float:
     """Smallest gap [m] between the content's top/bottom faces and the packaging layers over
-    the content's footprint (negative while a layer still cuts through the content)."""
-    lo, hi = _content_extent(c, s)
+    the content's footprint (negative while a layer still cuts through the content); a rigid
+    content counted with ``scale`` times its size."""
+    lo, hi = _content_extent(c, s, scale)
     gaps = [np.inf]
     for ids, sign in ((c.top, 1.0), (c.bottom, -1.0)):
         p = s.positions[ids]
@@ -102,6 +159,11 @@ def opening_clearance(c: Consignment, s: State) -> float:
             z = p[over, 2]
             gaps.append(float(np.min(z - hi[2])) if sign > 0 else float(np.min(lo[2] - z)))
     return min(gaps) - c.contact_radius
+
+
+def _settle_deadline(st: AssemblySettings, t_open: float, f0: float) -> float:
+    """Latest end [s] of the settling: release, growth (if any) and ``max_settle_time``."""
+    return t_open + st.release_time + (st.growth_time if f0 < 1.0 else 0.0) + st.max_settle_time
 
 
 def assemble(
@@ -123,16 +185,21 @@ def assemble(
         error_estimate="smooth",
     )
     wall0 = time.perf_counter()
+    f0 = content_scale_for(build) if st.content_scale is None else st.content_scale
     opening = Schedule((0.0, st.max_opening_time), (0.0, 1.0))
     model_a, c = _model(build, st, False, opening)
+    xref_full = [g["xref"].copy() for g in model_a.solid_groups]
     s = model_a.initial_state()
+    if f0 < 1.0:
+        _scale_content(model_a, c, s, f0, xref_full)
     steps = 0
-    while opening_clearance(c, s) < st.margin:
+    while opening_clearance(c, s, f0) < st.margin:
         if s.time >= st.max_opening_time:
             raise AssemblyError(
                 f"{build.spec.id}: the packaging did not open enough in {st.max_opening_time} s "
-                f"(clearance {opening_clearance(c, s) * 1e3:.2f} mm < margin "
-                f"{st.margin * 1e3:.2f} mm); raise AssemblySettings.opening_pressure"
+                f"(clearance {opening_clearance(c, s, f0) * 1e3:.2f} mm < margin "
+                f"{st.margin * 1e3:.2f} mm); raise AssemblySettings.opening_pressure or "
+                f"lower content_scale (now {f0:g})"
             )
         r = simulate(model_a, s.time + st.check_every, dt_out=st.check_every, options=opt,
                      state=s)  # fmt: skip
@@ -140,9 +207,29 @@ def assemble(
         if progress:
             progress("opening", s.time)
     t_open = s.time
-    release = Schedule((t_open, t_open + st.release_time), (opening(t_open), 0.0))
+    t_closed = t_open + st.release_time
+    release = Schedule((t_open, t_closed), (opening(t_open), 0.0))
     model_b, c = _model(build, st, True, release)
-    t_end = t_open + st.release_time
+    t_end = t_closed
+    if f0 < 1.0:
+        # the content grows back once the forces are released: a rigid one continuously (a
+        # jump would be a jump in penetration), a flexible one in small jumps of its
+        # reference geometry (its elements then expand smoothly)
+        growth = Schedule((t_closed, t_closed + st.growth_time), (f0, 1.0))
+        _scale_content(model_b, c, None, growth if c.content_body is not None else f0,
+                       xref_full)  # fmt: skip
+        if c.content_body is None:
+            r = simulate(model_b, t_closed, dt_out=st.release_time, options=opt, state=s)
+            s, steps = r.final_state, steps + r.stats["steps"]
+            for k in range(1, st.growth_chunks + 1):
+                _scale_content(model_b, c, None, f0 + (1.0 - f0) * k / st.growth_chunks,
+                               xref_full)  # fmt: skip
+                t_k = t_closed + st.growth_time * k / st.growth_chunks
+                r = simulate(model_b, t_k, dt_out=t_k - s.time, options=opt, state=s)
+                s, steps = r.final_state, steps + r.stats["steps"]
+                if progress:
+                    progress("growing", s.time)
+        t_end = t_closed + st.growth_time
     kin = np.inf
     while True:
         r = simulate(model_b, t_end, dt_out=t_end - s.time, options=opt, state=s)
@@ -150,7 +237,7 @@ def assemble(
         kin = asm.kinetic_energy(model_b, s.velocities, s.rotations)
         if progress:
             progress("settling", s.time)
-        if kin < st.kinetic_tolerance or s.time >= t_open + st.release_time + st.max_settle_time:
+        if kin < st.kinetic_tolerance or s.time >= _settle_deadline(st, t_open, f0):
             break
         t_end = s.time + st.settle_chunk
     if kin >= st.kinetic_tolerance:
@@ -164,6 +251,7 @@ def assemble(
         # plain Python numbers: the info goes to JSON and must read back equal
         "opening_time_s": float(t_open),
         "opening_pressure_Pa": float(st.opening_pressure * opening(t_open)),
+        "content_scale": float(f0),
         "end_time_s": float(s.time),
         "kinetic_energy_J": float(kin),
         "steps": int(steps),

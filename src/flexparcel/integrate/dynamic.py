@@ -159,6 +159,18 @@ class Stats:
     )
 
 
+def _box_half_at(m: Model, t: float) -> np.ndarray:
+    """Inner half sizes of the rounded boxes at time ``t`` (``Model.box_growth`` applied)."""
+    if not m.box_growth:
+        return m.box_half_by_node
+    half = m.box_half_by_node.copy()
+    for node, outer, schedule in m.box_growth:
+        f = schedule(t)
+        scaled = np.asarray(outer, dtype=float) * f
+        half[node] = np.maximum(scaled - m.box_radius_by_node[node], 0.0)
+    return half
+
+
 class GeneralizedAlpha:
     """Steps a :class:`State` of a :class:`Model` in time. ``step`` advances one accepted step."""
 
@@ -298,7 +310,7 @@ class GeneralizedAlpha:
             dofs = np.zeros((nq, 9), dtype=np.int64)
             binfo = box_contact_forces(
                 m.bp_node, m.bp_box, m.bp_radius, m.bp_law, factors[m.bp_schedule],
-                m.box_half_by_node, m.box_radius_by_node, m.contact_laws, s.positions,
+                _box_half_at(m, t), m.box_radius_by_node, m.contact_laws, s.positions,
                 s.rotations, s.velocities, fc, bk, bc, dofs, self._node_mass,
                 self.opt.impact_speed, w2,
             )  # fmt: skip

@@ -117,6 +117,10 @@ class Model:
     box_half_by_node: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """Inner half sizes of the rounded box carried by each node (zero if none) [m], (n, 3)."""
     box_radius_by_node: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    box_growth: list = field(default_factory=list)
+    """Rounded boxes whose size changes in time (the assembly grows a content into its
+    packaging): (rigid node, outer half sizes (3,) [m], Schedule of the scale factor). Contact
+    uses ``factor * outer - edge radius`` as the inner half sizes."""
     solid_groups: list = field(default_factory=list)
     """Solid element blocks: dicts with ``kind``, ``cells`` (m, k), ``kl``, ``xref``, ``grad``,
     ``beta`` (m,) and ``emap`` (m, 3k, 3k) CSR data slots (see flexparcel.elements.solid)."""
