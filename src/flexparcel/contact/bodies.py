@@ -10,8 +10,10 @@ box is ``c + r_b n`` at arm ``a`` from the box centre, and
     f = F_N(s, s') n + F_T(vt, F_N)  on the node,   -f at the arm on the box.
 
 The Newton tangent includes the change of ``s``, ``s'``, ``n`` and the slip with the node's
-translation and the box's translation, spin and velocities; the change of the arm with the
-configuration in the box moment is left out (second order).
+translation and the box's translation, spin and velocities (``s'`` and the slip change with the
+configuration through ``n`` and through the arm in ``w_b x a``); the change of the arm with the
+configuration in the box moment ``a x f`` is left out (second order: ``|f| |da|`` against
+``|a| |df|``, about ``s / |a|``).
 """
 
 from __future__ import annotations
@@ -113,14 +115,24 @@ def box_contact_forces(
         dsd = np.zeros(9)
         dsd[:3] = -n
         dsd[3:6] = n
-        dsd[6:] = -np.cross(a, n)
+        dsd[6:] = np.cross(a, n)  # n . (w_b x a) = w_b . (a x n)
         proj = np.eye(3) - np.outer(n, n)
         dvrel = np.zeros((3, 9))
         dvrel[:, :3] = np.eye(3)
         dvrel[:, 3:6] = -np.eye(3)
         dvrel[:, 6:] = skew(a)
+        # s' = -n . vrel and vt = vrel - (n . vrel) n change with the configuration through n
+        # and through the arm in w_b x a, a = p - x_b + (s - r_p) n (outside and deep inside)
+        da = np.outer(n, ds) + (s - bp_radius[q]) * dn
+        for i in range(3):
+            da[i, i] += 1.0
+            da[i, 3 + i] -= 1.0
+        dvrel_q = -skew(wb) @ da
+        vdn = vrel @ dn
+        dsd_q = -(vdn + n @ dvrel_q)
+        dvt_q = proj @ dvrel_q - np.outer(n, vdn) - vn * dn
         g = n + dft_dfn
-        dfk = act * (np.outer(g, dfn_ds * ds) + fn * dn)
+        dfk = act * (np.outer(g, dfn_ds * ds + dfn_dsd * dsd_q) + fn * dn + dft_dvt @ dvt_q)
         dfc = act * (np.outer(g, dfn_dsd * dsd) + dft_dvt @ proj @ dvrel)
         wa = skew(a)
         mk = wa @ dfk

@@ -115,7 +115,19 @@ def face_contact_forces(
                 out_f[ids[a], i] += w[a] * f[i]
                 out_dofs[k, 3 * a + i] = 6 * ids[a] + i
         g = n + dft_dfn
-        dfx = act * (np.outer(g, dfn_ds * ds) + fn * dn)  # (3, 12)
+        # s' = -n . vrel and vt = vrel - (n . vrel) n change with the configuration through n
+        # and through the barycentric weights of the face velocities in vrel
+        dvrel_x = np.zeros((3, 12))
+        for a in range(3):
+            va = vel[t[a], :3]
+            for i in range(3):
+                for j in range(12):
+                    dvrel_x[i, j] -= va[i] * dbary[a, j]
+        vdn = vrel @ dn
+        dsd_x = -(vdn + n @ dvrel_x)
+        proj = np.eye(3) - np.outer(n, n)
+        dvt_x = proj @ dvrel_x - np.outer(n, vdn) - vn * dn
+        dfx = act * (np.outer(g, dfn_ds * ds + dfn_dsd * dsd_x) + fn * dn + dft_dvt @ dvt_x)
         dvrel = np.zeros((3, 12))
         for a in range(4):
             for i in range(3):
@@ -123,7 +135,6 @@ def face_contact_forces(
         dsd = np.zeros(12)
         for j in range(12):
             dsd[j] = -(n[0] * dvrel[0, j] + n[1] * dvrel[1, j] + n[2] * dvrel[2, j])
-        proj = np.eye(3) - np.outer(n, n)
         dfv = act * (np.outer(g, dfn_dsd * dsd) + dft_dvt @ proj @ dvrel)
         for a in range(4):
             for i in range(3):

@@ -1,0 +1,465 @@
+"""Force tangents of the coupled contact kernels against central finite differences.
+
+The implicit integrator adds ``-(bk + cv bc)`` of every coupled contact pair into its Newton
+matrix (``GeneralizedAlpha._box_contact_matrix``), where ``bk`` and ``bc`` are the derivatives
+of the pair's generalised force (the contact force *on* the nodes, with the sign it has in
+``out_f``) with respect to the pair's positions / rotation increments and velocities. So each
+block is compared here, column by column, with the central difference
+``(F(q + h e_j) - F(q - h e_j)) / (2 h)`` of the force vector the kernel itself returns:
+
+* :func:`box_contact_forces` (9 x 9: node translation, box translation, box spin; the spin is
+  spatial, ``R <- exp(W(dtheta)) R``, as :func:`flexparcel.elements.rotations.apply_spins`
+  applies the Newton increment, and the angular velocity is the world-frame ``w_b``);
+* :func:`face_contact_forces` (12 x 12: the node and the triangle's three vertices);
+* :func:`edge_plane_forces` (6 x 6: the two nodes of a shell edge, 3 sampled points).
+
+States: in contact in the spring + STEP-damping branch, in the rebound branch
+``F_N = R_df F_NC``, sliding (``|vt| > v_d``, ``mu = mu_d``), in the STEP5 friction blend
+(``v_s < |vt| < v_d``) and near stick (``|vt| < v_s``, the regularised branch of eq. 8), with moving
+and spinning boxes, moving and deforming faces and a moving belt. Each state asserts its branch
+with margins, so that ``q +- h`` never crosses a kink (the STEP ends ``s = 0, s_max``, the
+friction joins ``|vt| = v_s, v_d``, the rebound switch, region changes of the closest point).
+
+Tolerance: ``1e-6`` of the block's largest entry. Steps ``h_x = 1e-9 m`` (the penetration is
+``5e-5 m`` and the STEP ramp ``s_max = 1e-4 m``; the shortest geometric length, the distance from
+a rounded box's inner edge or a triangle's edge, is >= 1e-4 m), ``h_theta = 1e-7 rad`` (arms
+<= 0.07 m) and ``h_v = 1e-7 m/s`` (``v_s = 1e-3 m/s``): the truncation error of the central
+difference is ~ (h / scale)**2 <= 1e-7 (the shortest scale is the friction blend's
+v_d - v_s = 0.5 mm/s) and the rounding error ~ 1e-16 |F| / h / |K| ~ 1e-10; measured errors are
+<= 1e-7 (<= 5e-9 outside the blend). Any missing term of the tangent that these states exercise is
+>= ~1e-5 of the block (the terms fixed together with this test were 2e-5 to 0.26).
+
+Left out by design (documented in :mod:`flexparcel.contact.bodies`): the change of the box
+contact's arm ``a`` with the configuration in the box moment ``-(a x f)``, i.e. ``f x da/dq``.
+The box test adds that term, evaluated with a finite difference of the arm, to the kernel's block
+before the tight comparison, and checks the plain block against the plain finite difference to a
+looser ``1e-3``: the term is ``|f| |da/dq|`` against ``|a| |df/dq|``, about ``s / |a| ~ 1e-3``
+(``|da/dq| <= 1`` for translations, ``|a|`` for spins), and measures <= 1e-4 here.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from flexparcel.consignments.build import default_packaging_content_law
+from flexparcel.contact.bodies import box_contact_forces
+from flexparcel.contact.edges import edge_plane_forces
+from flexparcel.contact.faces import face_contact_forces
+from flexparcel.contact.geometry import (
+    BOX_CORNER,
+    BOX_EDGE,
+    BOX_FACE,
+    TRI_EDGE_AB,
+    TRI_FACE,
+    point_box_contact_derivs,
+    point_triangle_contact,
+)
+from flexparcel.contact.law import (
+    P_R_DF,
+    P_S_MAX,
+    P_V_D,
+    P_V_S,
+    friction_force_packed,
+    normal_force_packed,
+)
+from flexparcel.elements.rotations import rotation_exp, skew
+
+RTOL = 1e-6  # of the block's largest entry (see the module docstring)
+RTOL_ARM = 1e-3  # box blocks without the left-out arm terms
+H_X, H_TH, H_V = 1e-9, 1e-7, 1e-7
+ACT = 0.8  # schedule factor, to check that it scales the blocks too
+S = 5e-5  # penetration [m]: the middle of the STEP damping ramp (s_max = 0.1 mm)
+
+# the consignments' packaging-content law (paper Table 6: 649 N/mm, 0.579 Ns/mm STEP damping over
+# 0.1 mm, mu = 0.3); R_df = 0 there, so its rebound branch is F_N = 0
+CONTENT = default_packaging_content_law()
+# the same with a static coefficient above the dynamic one (a real STEP5 blend between v_s and
+# v_d) and R_df = 0.5 (a rebound branch that carries force)
+BLEND = replace(CONTENT, mu_static=0.4, rebound_damping_factor=0.5)
+# a Hertz-like spring with indentation damping (the other damping option of the law)
+HERTZ = replace(
+    CONTENT,
+    stiffness=2e7,
+    stiffness_exponent=1.5,
+    damping=5e6,
+    damping_option="indentation",
+    indentation_exponent=1.0,
+)
+
+
+def _regime(law, s, sdot, vt):
+    """(normal branch, friction regime) of a contact point, asserting margins to every kink."""
+    p = law.packed()
+    assert 0.2 * p[P_S_MAX] < s < 0.8 * p[P_S_MAX] or law.damping_option == "indentation"
+    f_nc = normal_force_packed(s, 0.0, p)[0]
+    total = normal_force_packed(s, sdot, p)[0]
+    if total > 1.2 * p[P_R_DF] * f_nc and sdot != 0.0:
+        normal = "spring+damping"
+    else:
+        assert normal_force_packed(s, sdot * 0.8, p)[0] == pytest.approx(p[P_R_DF] * f_nc)
+        normal = "rebound"
+    v = float(np.linalg.norm(vt))
+    v_s, v_d = p[P_V_S], p[P_V_D]
+    if v < 0.7 * v_s:
+        friction = "near-stick"
+    elif v_s + 0.2 * (v_d - v_s) < v < v_d - 0.2 * (v_d - v_s):
+        friction = "blend"
+    else:
+        assert v > 2.0 * v_d
+        friction = "sliding"
+    # friction really is there (the law's friction, not a zero block)
+    assert np.linalg.norm(friction_force_packed(np.asarray(vt, float), 1.0, p)[0]) > 0.0
+    return normal, friction
+
+
+def _compare(block, fd, rtol):
+    scale = np.abs(block).max()
+    assert scale > 0.0
+    err = np.abs(fd - block).max() / scale
+    assert err <= rtol, f"max |FD - block| / max |block| = {err:.2e} > {rtol:.0e}"
+    return err
+
+
+# --------------------------------------------------------------------------------------------------
+# node against rigid rounded box
+# --------------------------------------------------------------------------------------------------
+
+HALF = np.array([0.05, 0.04, 0.02])  # inner half sizes [m]
+R_BOX = 0.003  # edge radius [m]
+R_NODE = 0.15e-3  # node contact radius: half a 0.3 mm shell [m]
+X_BOX = np.array([0.01, -0.02, 0.05])
+R0 = rotation_exp(np.array([0.1, -0.05, 0.3]))
+
+
+def _box_run(law, pos, rot, vel):
+    """Pair force [f_node, F_box, M_box] (9,), blocks bk, bc (9, 9) of the single pair."""
+    f = np.zeros((2, 6))
+    bk = np.zeros((1, 9, 9))
+    bc = np.zeros((1, 9, 9))
+    dofs = np.zeros((1, 9), dtype=np.int64)
+    half = np.zeros((2, 3))
+    half[1] = HALF
+    radius = np.array([0.0, R_BOX])
+    nc = box_contact_forces(
+        np.array([0]), np.array([1]), np.array([R_NODE]), np.array([0]), np.array([ACT]), half,
+        radius, law.packed()[None], pos, rot, vel, f, bk, bc, dofs, np.ones(2), 1e9, np.zeros(1),
+    )[0]  # fmt: skip
+    assert nc == 1
+    assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 9, 10, 11]
+    return np.concatenate([f[0, :3], f[1]]), bk[0], bc[0]
+
+
+def _box_arm(pos, rot):
+    """Arm of the contact point on the box from its centre (the kernel's ``a``)."""
+    _, n, c, _, _, _, _ = point_box_contact_derivs(pos[0], pos[1], rot[1], HALF, R_BOX, R_NODE)
+    return c + R_BOX * n - pos[1]
+
+
+def _box_perturbed(pos, rot, j, h):
+    """Configuration moved by h along column j of the 9 DOFs [x_node, x_box, spin_box]."""
+    p, r = pos.copy(), rot.copy()
+    if j < 6:
+        p[j // 3, j % 3] += h
+    else:
+        e = np.zeros(3)
+        e[j - 6] = h
+        r[1] = rotation_exp(e) @ rot[1]
+    return p, r
+
+
+def _box_state(local, slip, sdot, v_box=(0.0, 0.0, 0.0), w_box=(0.0, 0.0, 0.0)):
+    """Node at ``local`` in the box frame; its velocity gives the slip ``slip`` (projected on the
+    tangent plane) and the penetration rate ``sdot`` relative to the box surface."""
+    pos = np.array([X_BOX + R0 @ np.asarray(local), X_BOX])
+    rot = np.array([np.eye(3), R0])
+    s, n, c, region, _, _, _ = point_box_contact_derivs(pos[0], pos[1], R0, HALF, R_BOX, R_NODE)
+    a = c + R_BOX * n - X_BOX
+    slip = np.asarray(slip, float)
+    vt = slip - (slip @ n) * n
+    vel = np.zeros((2, 6))
+    vel[1, :3] = v_box
+    vel[1, 3:] = w_box
+    vel[0, :3] = vel[1, :3] + np.cross(vel[1, 3:], a) + vt - sdot * n
+    return pos, rot, vel, s, vt, region
+
+
+_TOP = (0.01, 0.005, HALF[2] + R_BOX + R_NODE - S)  # over the +z face
+_EDGE = (0.01, *(HALF[1:] + (R_BOX + R_NODE - S) / np.sqrt(2.0)))  # over the +y+z rounded edge
+_CORNER = tuple(HALF + (R_BOX + R_NODE - S) / np.sqrt(3.0))  # over the +++ rounded corner
+_SLIDE = (0.02, 0.01, 0.0)  # 22 mm/s
+_SD = "spring+damping"
+_MOVING = {"v_box": (0.01, 0.0, 0.02), "w_box": (0.3, -0.2, 0.5)}
+
+BOX_CASES = {
+    # name: (law, local, slip, sdot, box motion, region, expected regime)
+    "face-damped-sliding": (CONTENT, _TOP, _SLIDE, 0.05, {}, BOX_FACE, _SD, "sliding"),
+    "face-moving-box": (CONTENT, _TOP, _SLIDE, 0.05, _MOVING, BOX_FACE, _SD, "sliding"),
+    "edge-moving-box": (CONTENT, _EDGE, _SLIDE, 0.05, _MOVING, BOX_EDGE, _SD, "sliding"),
+    "corner-moving-box": (
+        CONTENT, _CORNER, _SLIDE, -0.03, _MOVING, BOX_CORNER, _SD, "sliding",
+    ),
+    "face-rebound": (BLEND, _TOP, _SLIDE, -0.3, _MOVING, BOX_FACE, "rebound", "sliding"),
+    "face-near-stick": (
+        BLEND, _TOP, (3e-4, -2e-4, 0.0), 0.05, _MOVING, BOX_FACE, _SD, "near-stick",
+    ),
+    "edge-blend": (
+        BLEND, _EDGE, (1.2e-3, 0.0, 0.0), 0.05, _MOVING, BOX_EDGE, _SD, "blend",
+    ),
+    "face-hertz-indentation": (
+        HERTZ, _TOP, _SLIDE, 0.05, _MOVING, BOX_FACE, _SD, "sliding",
+    ),
+}  # fmt: skip
+
+
+def box_errors(case):
+    """(error of bk with the arm terms, of bc, of plain bk) relative to the blocks' maxima."""
+    law, local, slip, sdot, motion, region, normal, friction = BOX_CASES[case]
+    pos, rot, vel, s, vt, got_region = _box_state(local, slip, sdot, **motion)
+    assert got_region == region
+    assert _regime(law, s, sdot, vt) == (normal, friction)
+    f0, bk, bc = _box_run(law, pos, rot, vel)
+    fk = np.zeros((9, 9))
+    fc = np.zeros((9, 9))
+    da = np.zeros((3, 9))
+    for j in range(9):
+        pp, rp = _box_perturbed(pos, rot, j, H_TH if j >= 6 else H_X)
+        pm, rm = _box_perturbed(pos, rot, j, -H_TH if j >= 6 else -H_X)
+        h2 = 2.0 * (H_TH if j >= 6 else H_X)
+        fk[:, j] = (_box_run(law, pp, rp, vel)[0] - _box_run(law, pm, rm, vel)[0]) / h2
+        da[:, j] = (_box_arm(pp, rp) - _box_arm(pm, rm)) / h2
+        vp, vm = vel.copy(), vel.copy()
+        row, col = (0, j) if j < 3 else (1, j - 3)
+        vp[row, col] += H_V
+        vm[row, col] -= H_V
+        fc[:, j] = (_box_run(law, pos, rot, vp)[0] - _box_run(law, pos, rot, vm)[0]) / (2 * H_V)
+    # the left-out term: the box moment -(a x f) changes with the arm by f x da
+    arm = np.zeros((9, 9))
+    arm[6:] = skew(f0[:3]) @ da
+    return (
+        _compare(bk + arm, fk, RTOL),
+        _compare(bc, fc, RTOL),
+        _compare(bk, fk, RTOL_ARM),
+    )
+
+
+@pytest.mark.parametrize("case", list(BOX_CASES))
+def test_box_contact_tangents_match_finite_differences(case):
+    box_errors(case)
+
+
+# --------------------------------------------------------------------------------------------------
+# node against a shell / solid triangle
+# --------------------------------------------------------------------------------------------------
+
+TRI = np.array([[-0.004, -0.003, 0.0], [0.006, -0.002, 0.0008], [-0.001, 0.007, -0.0005]])
+THICK = 0.3e-3  # half the two 0.3 mm shells' thicknesses [m]
+_N_T = np.cross(TRI[1] - TRI[0], TRI[2] - TRI[0])
+_N_T /= np.linalg.norm(_N_T)
+_INSIDE = TRI.mean(axis=0) + 0.3 * (TRI[0] - TRI.mean(axis=0))  # a point of the face
+_BEYOND_AB = 0.5 * (TRI[0] + TRI[1]) + 1e-4 * np.cross(TRI[1] - TRI[0], _N_T) / np.linalg.norm(
+    TRI[1] - TRI[0]
+)  # 0.1 mm outside the edge a-b, in the face's plane
+
+
+def _face_run(law, pos, vel, side):
+    f = np.zeros((4, 6))
+    fk = np.zeros((1, 12, 12))
+    fc = np.zeros((1, 12, 12))
+    dofs = np.zeros((1, 12), dtype=np.int64)
+    nc = face_contact_forces(
+        np.array([[0, 0]]), np.array([float(side)]), np.array([0]), np.array([[1, 2, 3]]), THICK,
+        law.packed(), ACT, pos, vel, f, fk, fc, dofs, np.ones(4), 1e9, np.zeros(1),
+    )[0]  # fmt: skip
+    assert nc == 1
+    assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 12, 13, 14, 18, 19, 20]
+    return f[:, :3].ravel(), fk[0], fc[0]
+
+
+def _face_state(point, side, slip, sdot, face_motion):
+    """Node near the triangle; face vertices translate, spin and stretch (``face_motion``)."""
+    pos = np.vstack([point, TRI])
+    vel = np.zeros((4, 6))
+    if face_motion:
+        centre = TRI.mean(axis=0)
+        stretch = np.diag([0.5, -0.3, 0.2])  # a deforming face: different vertex velocities
+        vel[1:, :3] = (
+            np.array([0.03, -0.01, 0.01])
+            + np.cross(np.array([0.5, -0.3, 2.0]), TRI - centre)
+            + (TRI - centre) @ stretch.T
+        )
+    s, _, bary, n, region, _ = point_triangle_contact(pos[0], *TRI, THICK, side)
+    slip = np.asarray(slip, float)
+    vt = slip - (slip @ n) * n
+    vel[0, :3] = bary @ vel[1:, :3] + vt - sdot * n
+    return pos, vel, s, vt, region
+
+
+FACE_CASES = {
+    # name: (law, point, side, slip, sdot, face moves, region, expected regime)
+    "inside-damped-sliding": (
+        CONTENT, _INSIDE + (THICK - S) * _N_T, 1, _SLIDE, 0.05, False, TRI_FACE,
+        "spring+damping", "sliding",
+    ),
+    "inside-moving-face": (
+        CONTENT, _INSIDE + (THICK - S) * _N_T, 1, _SLIDE, 0.05, True, TRI_FACE,
+        "spring+damping", "sliding",
+    ),
+    "below-moving-face": (
+        CONTENT, _INSIDE - (THICK - S) * _N_T, -1, _SLIDE, 0.05, True, TRI_FACE,
+        "spring+damping", "sliding",
+    ),
+    "beyond-edge-moving-face": (
+        CONTENT, _BEYOND_AB + np.sqrt((THICK - S) ** 2 - 1e-8) * _N_T, 1, _SLIDE, 0.05, True,
+        TRI_EDGE_AB, "spring+damping", "sliding",
+    ),
+    "inside-rebound": (
+        BLEND, _INSIDE + (THICK - S) * _N_T, 1, _SLIDE, -0.3, True, TRI_FACE, "rebound",
+        "sliding",
+    ),
+    "inside-near-stick": (
+        BLEND, _INSIDE + (THICK - S) * _N_T, 1, (2e-4, 1e-4, 0.0), 0.05, True, TRI_FACE,
+        "spring+damping", "near-stick",
+    ),
+    "inside-blend": (
+        BLEND, _INSIDE + (THICK - S) * _N_T, 1, (0.0, 1.2e-3, 0.0), 0.05, True, TRI_FACE,
+        "spring+damping", "blend",
+    ),
+}  # fmt: skip
+
+
+def face_errors(case):
+    """(error of the position block, of the velocity block) relative to the blocks' maxima."""
+    law, point, side, slip, sdot, moving, region, normal, friction = FACE_CASES[case]
+    pos, vel, s, vt, got_region = _face_state(point, side, slip, sdot, moving)
+    assert got_region == region
+    assert s == pytest.approx(S)
+    assert _regime(law, s, sdot, vt) == (normal, friction)
+    _, fk, fc = _face_run(law, pos, vel, side)
+    dk = np.zeros((12, 12))
+    dc = np.zeros((12, 12))
+    for j in range(12):
+        node, i = divmod(j, 3)
+        pp, pm = pos.copy(), pos.copy()
+        pp[node, i] += H_X
+        pm[node, i] -= H_X
+        dk[:, j] = (_face_run(law, pp, vel, side)[0] - _face_run(law, pm, vel, side)[0]) / (2 * H_X)
+        vp, vm = vel.copy(), vel.copy()
+        vp[node, i] += H_V
+        vm[node, i] -= H_V
+        dc[:, j] = (_face_run(law, pos, vp, side)[0] - _face_run(law, pos, vm, side)[0]) / (2 * H_V)
+    return _compare(fk, dk, RTOL), _compare(fc, dc, RTOL)
+
+
+@pytest.mark.parametrize("case", list(FACE_CASES))
+def test_face_contact_tangents_match_finite_differences(case):
+    face_errors(case)
+
+
+# --------------------------------------------------------------------------------------------------
+# shell edge against a plane (a belt)
+# --------------------------------------------------------------------------------------------------
+
+PLANE_N = rotation_exp(np.array([0.2, -0.1, 0.0])) @ np.array([0.0, 0.0, 1.0])
+PLANE_P = np.array([0.0, 0.0, 0.01])
+BELT = np.cross(PLANE_N, np.array([0.0, 1.0, 0.0]))
+BELT *= 0.5 / np.linalg.norm(BELT)  # 0.5 m/s in the plane
+R_EDGE = 0.15e-3
+SAMPLES = 3
+_T1 = np.cross(PLANE_N, np.array([1.0, 0.0, 0.0]))
+_T1 /= np.linalg.norm(_T1)  # the edge's direction, in the plane
+_T2 = np.cross(PLANE_N, _T1)
+
+
+def _edge_run(law, pos, vel):
+    f = np.zeros((2, 6))
+    ek = np.zeros((1, 6, 6))
+    ec = np.zeros((1, 6, 6))
+    dofs = np.zeros((1, 6), dtype=np.int64)
+    nc = edge_plane_forces(
+        np.array([[0, 1]]), PLANE_P, PLANE_N, BELT, R_EDGE, SAMPLES, law.packed(), ACT, pos, vel,
+        f, ek, ec, dofs, np.ones(2), 1e9, np.zeros(1),
+    )[0]  # fmt: skip
+    assert list(dofs[0]) == [0, 1, 2, 6, 7, 8]
+    return f[:, :3].ravel(), ek[0], ec[0], nc
+
+
+def _edge_state(s_ends, slips, sdots):
+    """Edge of 10 mm along the plane; penetrations, slips (relative to the belt) and penetration
+    rates given at its two nodes (linear along the edge, so the samples' values lie between)."""
+    pos = np.zeros((2, 3))
+    vel = np.zeros((2, 6))
+    for k in range(2):
+        pos[k] = PLANE_P + 0.01 * k * _T1 + 0.002 * _T2 + (R_EDGE - s_ends[k]) * PLANE_N
+        vel[k, :3] = BELT + np.asarray(slips[k]) - sdots[k] * PLANE_N
+    return pos, vel
+
+
+_TANGENT = np.array([[0.02, 0.0, 0.0], [0.015, 0.01, 0.0]])  # sliding over the belt [m/s]
+
+
+def _edge_in_plane(v):
+    v = np.asarray(v, float)
+    return v - (v @ PLANE_N) * PLANE_N
+
+
+EDGE_CASES = {
+    # name: (law, s at the nodes, slips, sdots, contacts, expected regime)
+    "pressed-damped-sliding": (
+        CONTENT, (S, 0.6 * S), _TANGENT, (0.05, 0.03), 3, "spring+damping", "sliding",
+    ),
+    "tilted-partly-in-contact": (
+        CONTENT, (2.0 * S, -0.8 * S), _TANGENT, (0.05, 0.03), 2, "spring+damping", "sliding",
+    ),
+    "rebound": (BLEND, (S, 0.6 * S), _TANGENT, (-0.3, -0.25), 3, "rebound", "sliding"),
+    "near-stick-on-belt": (
+        BLEND, (S, 0.6 * S), ((3e-4, 1e-4, 0.0), (2e-4, 2e-4, 0.0)), (0.05, 0.03), 3,
+        "spring+damping", "near-stick",
+    ),
+    "blend-on-belt": (
+        BLEND, (S, 0.6 * S), ((1.2e-3, 0.0, 0.0), (1.2e-3, 1e-4, 0.0)), (0.05, 0.03), 3,
+        "spring+damping", "blend",
+    ),
+}  # fmt: skip
+
+
+def edge_errors(case):
+    """(error of the position block, of the velocity block) relative to the blocks' maxima."""
+    law, s_ends, slips, sdots, contacts, normal, friction = EDGE_CASES[case]
+    slips = [_edge_in_plane(v) for v in slips]
+    pos, vel = _edge_state(s_ends, slips, sdots)
+    for m in range(SAMPLES):
+        xi = (m + 0.5) / SAMPLES
+        s = (1 - xi) * s_ends[0] + xi * s_ends[1]
+        if s > 0.0:
+            vt = (1 - xi) * slips[0] + xi * slips[1]
+            assert _regime(law, s, (1 - xi) * sdots[0] + xi * sdots[1], vt) == (normal, friction)
+    _, ek, ec, nc = _edge_run(law, pos, vel)
+    assert nc == contacts
+    dk = np.zeros((6, 6))
+    dc = np.zeros((6, 6))
+    for j in range(6):
+        node, i = divmod(j, 3)
+        pp, pm = pos.copy(), pos.copy()
+        pp[node, i] += H_X
+        pm[node, i] -= H_X
+        dk[:, j] = (_edge_run(law, pp, vel)[0] - _edge_run(law, pm, vel)[0]) / (2 * H_X)
+        vp, vm = vel.copy(), vel.copy()
+        vp[node, i] += H_V
+        vm[node, i] -= H_V
+        dc[:, j] = (_edge_run(law, pos, vp)[0] - _edge_run(law, pos, vm)[0]) / (2 * H_V)
+    return _compare(ek, dk, RTOL), _compare(ec, dc, RTOL)
+
+
+@pytest.mark.parametrize("case", list(EDGE_CASES))
+def test_edge_plane_tangents_match_finite_differences(case):
+    edge_errors(case)
+
+
+def test_box_contact_rebound_without_rebound_factor_releases():
+    # the consignments' law has R_df = 0: its rebound branch is F_N = 0, so the pair carries no
+    # force and no tangent (the finite differences are zero too)
+    pos, rot, vel, s, vt, _ = _box_state(_TOP, _SLIDE, -0.3, **_MOVING)
+    assert _regime(CONTENT, s, -0.3, vt) == ("rebound", "sliding")
+    f, bk, bc = _box_run(CONTENT, pos, rot, vel)
+    assert not f.any() and not bk.any() and not bc.any()
