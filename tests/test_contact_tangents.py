@@ -328,6 +328,25 @@ FACE_CASES = {
 }  # fmt: skip
 
 
+def _central_differences(force, pos, vel):
+    """Central differences of ``force(pos, vel)`` (3k,) with respect to the k nodes' positions
+    (step H_X) and velocities (step H_V): two (3k, 3k) blocks."""
+    n = pos.size
+    dk = np.zeros((n, n))
+    dc = np.zeros((n, n))
+    for j in range(n):
+        node, i = divmod(j, 3)
+        pp, pm = pos.copy(), pos.copy()
+        pp[node, i] += H_X
+        pm[node, i] -= H_X
+        dk[:, j] = (force(pp, vel) - force(pm, vel)) / (2 * H_X)
+        vp, vm = vel.copy(), vel.copy()
+        vp[node, i] += H_V
+        vm[node, i] -= H_V
+        dc[:, j] = (force(pos, vp) - force(pos, vm)) / (2 * H_V)
+    return dk, dc
+
+
 def face_errors(case):
     """(error of the position block, of the velocity block) relative to the blocks' maxima."""
     law, point, side, slip, sdot, moving, region, normal, friction = FACE_CASES[case]
@@ -336,18 +355,7 @@ def face_errors(case):
     assert s == pytest.approx(S)
     assert _regime(law, s, sdot, vt) == (normal, friction)
     _, fk, fc = _face_run(law, pos, vel, side)
-    dk = np.zeros((12, 12))
-    dc = np.zeros((12, 12))
-    for j in range(12):
-        node, i = divmod(j, 3)
-        pp, pm = pos.copy(), pos.copy()
-        pp[node, i] += H_X
-        pm[node, i] -= H_X
-        dk[:, j] = (_face_run(law, pp, vel, side)[0] - _face_run(law, pm, vel, side)[0]) / (2 * H_X)
-        vp, vm = vel.copy(), vel.copy()
-        vp[node, i] += H_V
-        vm[node, i] -= H_V
-        dc[:, j] = (_face_run(law, pos, vp, side)[0] - _face_run(law, pos, vm, side)[0]) / (2 * H_V)
+    dk, dc = _central_differences(lambda p, v: _face_run(law, p, v, side)[0], pos, vel)
     return _compare(fk, dk, RTOL), _compare(fc, dc, RTOL)
 
 
@@ -436,18 +444,7 @@ def edge_errors(case):
             assert _regime(law, s, (1 - xi) * sdots[0] + xi * sdots[1], vt) == (normal, friction)
     _, ek, ec, nc = _edge_run(law, pos, vel)
     assert nc == contacts
-    dk = np.zeros((6, 6))
-    dc = np.zeros((6, 6))
-    for j in range(6):
-        node, i = divmod(j, 3)
-        pp, pm = pos.copy(), pos.copy()
-        pp[node, i] += H_X
-        pm[node, i] -= H_X
-        dk[:, j] = (_edge_run(law, pp, vel)[0] - _edge_run(law, pm, vel)[0]) / (2 * H_X)
-        vp, vm = vel.copy(), vel.copy()
-        vp[node, i] += H_V
-        vm[node, i] -= H_V
-        dc[:, j] = (_edge_run(law, pos, vp)[0] - _edge_run(law, pos, vm)[0]) / (2 * H_V)
+    dk, dc = _central_differences(lambda p, v: _edge_run(law, p, v)[0], pos, vel)
     return _compare(ek, dk, RTOL), _compare(ec, dc, RTOL)
 
 
