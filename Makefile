@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/flexparcel demo --out $(OUT)/demo
+	$(BIN)/flexparcel demo --element-size 25 --out $(OUT)/demo
 
 test: $(STAMP)
 	$(BIN)/ruff check src tests examples
