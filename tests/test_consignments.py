@@ -243,3 +243,23 @@ def test_assembly_grows_a_shrunk_content_back_without_penetration():
     assert snap.info["kinetic_energy_J"] < snap.info["settings"]["kinetic_tolerance"]
     pen = _content_penetration(snap)
     assert -0.5e-3 < pen < 0.05e-3
+
+
+def test_rebound_is_the_first_bounce_even_if_it_sinks_lower_afterwards():
+    from types import SimpleNamespace
+
+    from flexparcel.scenarios.consignment_tests import rebound_height
+
+    # touches at z = 3 mm (frame 1), bottoms out at 2 mm, bounces to 4 mm, then tips over and
+    # sinks to 1 mm: the rebound is the bounce, 4 - 3 = 1 mm (the old global-minimum rule,
+    # counting from the 1 mm at the end, gave 0)
+    z = np.array([5.0, 3.0, 2.0, 4.0, 2.5, 1.0]) * 1e-3
+    pos = np.zeros((z.size, 1, 3))
+    pos[:, 0, 2] = z
+    model = SimpleNamespace(mass=np.ones((1, 6)))
+    res = SimpleNamespace(positions=pos)
+    c = SimpleNamespace(node_ids=np.array([0]), packaging=np.array([0]), contact_radius=3e-3)
+    assert rebound_height(model, res, c) == pytest.approx(1e-3)
+    # still sinking at the end: no bounce
+    pos[:, 0, 2] = np.array([5.0, 3.0, 2.0, 1.5, 1.2, 1.0]) * 1e-3
+    assert rebound_height(model, res, c) == 0.0

@@ -249,9 +249,12 @@ def drop_test(
 def rebound_height(
     model: Model, res: SimulationResult, c: Consignment, touch_radius: float | None = None
 ) -> float:
-    """Rebound [m]: the rise of the centre of mass after the impact above its height at the
+    """Rebound [m]: the rise of the centre of mass in the first bounce above its height at the
     first touch (the lowest packaging node reaching ``touch_radius`` [m], default the contact
-    radius); 0 without a touch."""
+    radius); 0 without a touch. The bounce runs from the first minimum of the centre height
+    after the touch until the centre falls back below that minimum (a consignment that bounces
+    and then tips over, as in the vertical drop, keeps sinking afterwards: its global minimum
+    comes after the bounce)."""
     ids = c.node_ids
     m = model.mass[ids, 0]
     zc = res.positions[:, ids, 2] @ m / m.sum()
@@ -266,5 +269,10 @@ def rebound_height(
         z_touch = zc[k - 1] + w * (zc[k] - zc[k - 1])
     else:
         z_touch = zc[0]
-    kmin = k + int(np.argmin(zc[k:]))
-    return float(max(0.0, zc[kmin:].max() - z_touch))
+    rising = np.flatnonzero(np.diff(zc[k:]) > 0.0)
+    if rising.size == 0:
+        return 0.0  # still sinking at the end: no bounce
+    kmin = k + int(rising[0])
+    below = np.flatnonzero(zc[kmin + 1 :] < zc[kmin])
+    end = kmin + 1 + int(below[0]) if below.size else zc.size
+    return float(max(0.0, zc[kmin:end].max() - z_touch))
