@@ -58,6 +58,8 @@ from typing import Any
 import numba as nb
 import numpy as np
 
+from flexparcel.model.checks import finite_number
+
 __all__ = [
     "ContactLaw",
     "DAMPING_OPTIONS",
@@ -124,15 +126,7 @@ _MM = 1.0e-3
 
 
 def _number(name: str, value: Any) -> float:
-    if isinstance(value, bool):
-        raise ValueError(f"ContactLaw.{name} must be a number, got {value!r}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"ContactLaw.{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"ContactLaw.{name} must be finite, got {value!r}")
-    return v
+    return finite_number(f"ContactLaw.{name}", value)
 
 
 @dataclass(frozen=True)

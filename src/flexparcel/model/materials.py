@@ -2,20 +2,15 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+
+from flexparcel.model.checks import finite_number
 
 __all__ = ["ShellMaterial", "validate_elastic"]
 
 
 def _check_finite(owner: str, name: str, value: float) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{owner}.{name} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{owner}.{name} must be finite, got {value!r}")
-    return v
+    return finite_number(f"{owner}.{name}", value)
 
 
 def validate_elastic(mat, name: str) -> None:

@@ -54,6 +54,7 @@ from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.io.tomlfile import read_toml
 from flexparcel.model.builder import Model, ModelBuilder, State
+from flexparcel.model.checks import finite_number
 from flexparcel.scenarios.conveyor import ConveyorParts, ConveyorScene, add_conveyor
 from flexparcel.scenarios.conveyor_responses import ConsignmentResponse, conveyor_responses
 from flexparcel.scenarios.friction_pairs import (
@@ -100,15 +101,6 @@ CONSIGNMENT_FRICTION = 0.3
 _GROUND_LAW = dict(c_N_per_mm=611.0, d_Ns_per_mm=0.591, s_max_mm=0.1)  # paper Table 6
 
 
-def _num(where: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
-        raise ValueError(f"{where} must be a number, got {value!r}")
-    v = float(value)
-    if not math.isfinite(v):
-        raise ValueError(f"{where} must be finite, got {value!r}")
-    return v
-
-
 @dataclass(frozen=True)
 class Placement:
     """Where one consignment starts on the belt.
@@ -137,13 +129,13 @@ class Placement:
             if not isinstance(v, str) or not v.strip():
                 raise ValueError(f"Placement.{key} must be a non-empty string, got {v!r}")
         label = f"placement {self.name!r}"
-        object.__setattr__(self, "x", _num(f"{label}: x", self.x))
-        object.__setattr__(self, "y", _num(f"{label}: y", self.y))
-        yaw = _num(f"{label}: yaw_deg", self.yaw_deg)
+        object.__setattr__(self, "x", finite_number(f"{label}: x", self.x))
+        object.__setattr__(self, "y", finite_number(f"{label}: y", self.y))
+        yaw = finite_number(f"{label}: yaw_deg", self.yaw_deg)
         if not -360.0 <= yaw <= 360.0:
             raise ValueError(f"{label}: yaw_deg must be in [-360, 360] deg, got {yaw:g}")
         object.__setattr__(self, "yaw_deg", yaw)
-        v = _num(f"{label}: speed", self.speed)
+        v = finite_number(f"{label}: speed", self.speed)
         if not 0.0 <= v <= 10.0:
             raise ValueError(f"{label}: speed must be in [0, 10] m/s, got {v:g}")
         object.__setattr__(self, "speed", v)
@@ -186,7 +178,7 @@ class SceneLayout:
                 f"SceneLayout.placements: duplicate name(s) {dup}; names must be unique"
             )
         object.__setattr__(self, "placements", pl)
-        g = _num("SceneLayout.gap_above_belt", self.gap_above_belt)
+        g = finite_number("SceneLayout.gap_above_belt", self.gap_above_belt)
         if not 0.0 <= g <= 0.05:
             raise ValueError(f"SceneLayout.gap_above_belt must be in [0, 0.05] m, got {g:g}")
         object.__setattr__(self, "gap_above_belt", g)
@@ -613,10 +605,10 @@ def build_conveyor_model(
     builds = {k: s.build for k, s in snapshots.items()}
     check_layout(layout, builds)
     if pair_reach is not None:
-        pair_reach = _num("pair_reach", pair_reach)
+        pair_reach = finite_number("pair_reach", pair_reach)
         if pair_reach < 0.0:
             raise ValueError(f"pair_reach must be >= 0 m or None, got {pair_reach:g}")
-    mu = _num("consignment_friction", consignment_friction)
+    mu = finite_number("consignment_friction", consignment_friction)
     if not 0.0 <= mu <= 2.0:
         raise ValueError(f"consignment_friction must be in [0, 2], got {mu:g}")
     b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
@@ -760,10 +752,10 @@ def run_conveyor(
     Integrator defaults as the consignment tests: generalized-alpha with rho_inf = 0.5,
     ``impact_limit="rigid"``, ``error_estimate="smooth"``.
     """
-    t_end = _num("t_end", t_end)
+    t_end = finite_number("t_end", t_end)
     if not 0.0 < t_end <= 10.0:
         raise ValueError(f"t_end must be in (0, 10] s, got {t_end:g}")
-    dt_out = _num("dt_out", dt_out)
+    dt_out = finite_number("dt_out", dt_out)
     if not 0.0 < dt_out <= t_end:
         raise ValueError(f"dt_out must be in (0, t_end = {t_end:g}] s, got {dt_out:g}")
     w0 = time.perf_counter()
