@@ -96,14 +96,22 @@ def _draw(ax, positions: np.ndarray, cells, boxes: Sequence[Box], axes: tuple[in
     ax.autoscale_view()
 
 
-def _save(fig, path: str | Path) -> Path:
+def _save(fig, path: str | Path, dpi: float | None = None) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    fig.savefig(path, dpi=dpi)
     import matplotlib.pyplot as plt
 
     plt.close(fig)
     return path
+
+
+def _finish(fig, path: str | Path, title: str = "", dpi: float | None = None) -> Path:
+    """Title (if any), tight layout, save to ``path`` and close: the end of every picture."""
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return _save(fig, path, dpi)
 
 
 def plot_consignment_views(
@@ -134,10 +142,7 @@ def plot_consignment_views(
     top.set_title("top view")
     for ax in (side, top):
         ax.grid(True, alpha=0.3)
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _finish(fig, path, title)
 
 
 def plot_frames(
@@ -200,10 +205,7 @@ def plot_frames(
         ax.set_xlabel("x [mm]")
         ax.grid(True, alpha=0.3)
     axs[0, 0].set_ylabel("z [mm]")
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _finish(fig, path, title)
 
 
 def plot_swing_curve(

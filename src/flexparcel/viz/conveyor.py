@@ -11,7 +11,14 @@ from pathlib import Path
 import numpy as np
 
 from flexparcel.scenarios.conveyor import ConveyorScene
-from flexparcel.viz.consignment import CONTENT_COLOUR, PACKAGING_COLOUR, Box, _draw, _pyplot
+from flexparcel.viz.consignment import (
+    CONTENT_COLOUR,
+    PACKAGING_COLOUR,
+    Box,
+    _draw,
+    _finish,
+    _pyplot,
+)
 
 __all__ = ["plot_conveyor_snapshots", "plot_trajectories", "animate_conveyor"]
 
@@ -65,10 +72,7 @@ def plot_conveyor_snapshots(
         ax.set_title(f"t = {t:.2f} s", fontsize=9)
         ax.set_ylabel("y [mm]")
     axes[-1, 0].set_xlabel("x (belt direction) [mm]")
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _finish(fig, path, title, dpi=100)
 
 
 def plot_trajectories(
@@ -105,20 +109,7 @@ def plot_trajectories(
     xt.set_ylabel("centroid x [mm]")
     xt.set_title("progress along the belt (dashed: deflector roots, dotted: belt end, "
                  "x: exit)", fontsize=9)  # fmt: skip
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    return _save(fig, path)
-
-
-def _save(fig, path: str | Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
-    return path
+    return _finish(fig, path, title, dpi=100)
 
 
 def _shell_polys_3d(positions: np.ndarray, cells) -> list:
