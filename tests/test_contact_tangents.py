@@ -132,8 +132,12 @@ X_BOX = np.array([0.01, -0.02, 0.05])
 R0 = rotation_exp(np.array([0.1, -0.05, 0.3]))
 
 
-def _box_run(law, pos, rot, vel):
-    """Pair force [f_node, F_box, M_box] (9,), blocks bk, bc (9, 9) of the single pair."""
+def _box_run(law, pos, rot, vel, anchor=None, start=None):
+    """Pair force [f_node, F_box, M_box] (9,), blocks bk, bc (9, 9) of the single pair.
+    Stick model: ``anchor`` (3,) body-frame anchor of the last step, or None for a new contact
+    anchored at the node's position in ``start`` = (pos0, rot0) (default: the state itself)."""
+    pos0, rot0 = start if start is not None else (pos, rot)
+    new = np.zeros((1, 3))
     f = np.zeros((2, 6))
     bk = np.zeros((1, 9, 9))
     bc = np.zeros((1, 9, 9))
@@ -144,6 +148,8 @@ def _box_run(law, pos, rot, vel):
     nc = box_contact_forces(
         np.array([0]), np.array([1]), np.array([R_NODE]), np.array([0]), np.array([ACT]), half,
         radius, law.packed()[None], pos, rot, vel, f, bk, bc, dofs, np.ones(2), 1e9, np.zeros(1),
+        np.zeros((1, 3)) if anchor is None else np.asarray(anchor, float)[None],
+        np.array([0.0 if anchor is None else 1.0]), new, np.zeros(1), pos0, rot0,
     )[0]  # fmt: skip
     assert nc == 1
     assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 9, 10, 11]
@@ -218,7 +224,13 @@ def box_errors(case):
     pos, rot, vel, s, vt, got_region = _box_state(local, slip, sdot, **motion)
     assert got_region == region
     assert _regime(law, s, sdot, vt) == (normal, friction)
-    f0, bk, bc = _box_run(law, pos, rot, vel)
+    return _box_block_errors(lambda p, r, v: _box_run(law, p, r, v), pos, rot, vel)
+
+
+def _box_block_errors(run, pos, rot, vel):
+    """Compare the blocks of ``run(pos, rot, vel)`` -> (force (9,), bk, bc) with central
+    differences: (error of bk with the arm terms, of bc, of plain bk)."""
+    f0, bk, bc = run(pos, rot, vel)
     fk = np.zeros((9, 9))
     fc = np.zeros((9, 9))
     da = np.zeros((3, 9))
@@ -226,13 +238,13 @@ def box_errors(case):
         pp, rp = _box_perturbed(pos, rot, j, H_TH if j >= 6 else H_X)
         pm, rm = _box_perturbed(pos, rot, j, -H_TH if j >= 6 else -H_X)
         h2 = 2.0 * (H_TH if j >= 6 else H_X)
-        fk[:, j] = (_box_run(law, pp, rp, vel)[0] - _box_run(law, pm, rm, vel)[0]) / h2
+        fk[:, j] = (run(pp, rp, vel)[0] - run(pm, rm, vel)[0]) / h2
         da[:, j] = (_box_arm(pp, rp) - _box_arm(pm, rm)) / h2
         vp, vm = vel.copy(), vel.copy()
         row, col = (0, j) if j < 3 else (1, j - 3)
         vp[row, col] += H_V
         vm[row, col] -= H_V
-        fc[:, j] = (_box_run(law, pos, rot, vp)[0] - _box_run(law, pos, rot, vm)[0]) / (2 * H_V)
+        fc[:, j] = (run(pos, rot, vp)[0] - run(pos, rot, vm)[0]) / (2 * H_V)
     # the left-out term: the box moment -(a x f) changes with the arm by f x da
     arm = np.zeros((9, 9))
     arm[6:] = skew(f0[:3]) @ da
@@ -262,7 +274,10 @@ _BEYOND_AB = 0.5 * (TRI[0] + TRI[1]) + 1e-4 * np.cross(TRI[1] - TRI[0], _N_T) / 
 )  # 0.1 mm outside the edge a-b, in the face's plane
 
 
-def _face_run(law, pos, vel, side):
+def _face_run(law, pos, vel, side, anchor=None, pos0=None):
+    """Forces on [node, a, b, c] (12,), blocks (12, 12). Stick model: ``anchor`` (3,) world
+    anchor of the last step (None: a new contact, anchored at the node's place in ``pos0``)."""
+    pos0 = pos if pos0 is None else pos0
     f = np.zeros((4, 6))
     fk = np.zeros((1, 12, 12))
     fc = np.zeros((1, 12, 12))
@@ -270,6 +285,8 @@ def _face_run(law, pos, vel, side):
     nc = face_contact_forces(
         np.array([[0, 0]]), np.array([float(side)]), np.array([0]), np.array([[1, 2, 3]]), THICK,
         law.packed(), ACT, pos, vel, f, fk, fc, dofs, np.ones(4), 1e9, np.zeros(1),
+        np.zeros((1, 3)) if anchor is None else np.asarray(anchor, float)[None],
+        np.array([0.0 if anchor is None else 1.0]), np.zeros((1, 3)), np.zeros(1), pos0,
     )[0]  # fmt: skip
     assert nc == 1
     assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 12, 13, 14, 18, 19, 20]
@@ -460,3 +477,129 @@ def test_box_contact_rebound_without_rebound_factor_releases():
     assert _regime(CONTENT, s, -0.3, vt) == ("rebound", "sliding")
     f, bk, bc = _box_run(CONTENT, pos, rot, vel)
     assert not f.any() and not bk.any() and not bc.any()
+
+
+# --------------------------------------------------------------------------------------------------
+# stick model on boxes and faces (anchored_friction): stick, slip at mu_d, slip in the blend,
+# and a new contact anchored where the node was at the step's start
+# --------------------------------------------------------------------------------------------------
+
+K_T = 649e3  # stick stiffness [N/m]: the normal stiffness of CONTENT
+STICK = replace(CONTENT, stick_stiffness=K_T)
+BLEND_STICK = replace(BLEND, stick_stiffness=K_T)
+
+
+def _stick_regime(law, force, n, a):
+    """'stick' or 'slip' from the node's force (3,) and the trial spring a (3,), with margins:
+    stick needs k_t |a| <= 0.8 mu_s F_N, slip k_t |a| >= 1.25 mu_s F_N (so q +- h never
+    crosses the switch)."""
+    f_n = force @ n / ACT
+    assert f_n > 0.0
+    limit = law.mu_static * f_n
+    pull = law.stick_stiffness * np.linalg.norm(a)
+    if pull <= 0.8 * limit:
+        # the spring force itself, to round-off
+        ft = (force - (force @ n) * n) / ACT
+        assert np.allclose(ft, -law.stick_stiffness * a, rtol=1e-9, atol=1e-12 * limit)
+        return "stick"
+    assert pull >= 1.25 * limit
+    return "slip"
+
+
+def _tangential(v, n):
+    return v - (v @ n) * n
+
+
+BOX_STICK_CASES = {
+    # name: (law, local, slip, sdot, box motion, anchor offset [m] or None (new contact),
+    #        expected regime)
+    "box-stick-moving": (STICK, _TOP, _SLIDE, 0.05, _MOVING, (1e-5, -4e-6, 0.0), "stick"),
+    "box-slip-sliding": (STICK, _EDGE, _SLIDE, 0.05, _MOVING, (2e-4, 1e-4, 0.0), "slip"),
+    "box-slip-blend": (
+        BLEND_STICK, _TOP, (1.2e-3, 0.0, 0.0), 0.05, _MOVING, (2e-4, 0.0, 0.0), "slip",
+    ),
+    "box-new-contact-corner": (STICK, _CORNER, _SLIDE, 0.05, _MOVING, None, "stick"),
+}  # fmt: skip
+
+
+def box_stick_errors(case):
+    law, local, slip, sdot, motion, offset, regime = BOX_STICK_CASES[case]
+    pos, rot, vel, s, vt, _ = _box_state(local, slip, sdot, **motion)
+    _, n, *_ = point_box_contact_derivs(pos[0], pos[1], rot[1], HALF, R_BOX, R_NODE)
+    if offset is None:
+        # the step started with the node 3 um back along its slip and the box turned a little
+        pos0 = pos.copy()
+        pos0[0] -= 3e-6 * vt / np.linalg.norm(vt)
+        rot0 = rot.copy()
+        rot0[1] = rotation_exp(np.array([2e-5, -1e-5, 3e-5])) @ rot[1]
+        start, anchor = (pos0, rot0), None
+        xi = rot0[1].T @ (pos0[0] - pos0[1])
+    else:
+        start = None
+        world = pos[0] - _tangential(np.asarray(offset, float), n)
+        anchor = xi = rot[1].T @ (world - pos[1])
+    a = _tangential(pos[0] - pos[1] - rot[1] @ xi, n)
+
+    def run(p, r, v):
+        return _box_run(law, p, r, v, anchor=anchor, start=start)
+
+    assert _stick_regime(law, run(pos, rot, vel)[0][:3], n, a) == regime
+    return _box_block_errors(run, pos, rot, vel)
+
+
+@pytest.mark.parametrize("case", list(BOX_STICK_CASES))
+def test_box_stick_tangents_match_finite_differences(case):
+    box_stick_errors(case)
+
+
+FACE_STICK_CASES = {
+    # name: (law, point, side, slip, face moves, anchor offset [m] or None, expected regime)
+    "face-stick-moving": (
+        STICK, _INSIDE + (THICK - S) * _N_T, 1, _SLIDE, True, (1e-5, 5e-6, 0.0), "stick",
+    ),
+    "face-slip-below": (
+        STICK, _INSIDE - (THICK - S) * _N_T, -1, _SLIDE, True, (2e-4, -1e-4, 0.0), "slip",
+    ),
+    "face-slip-blend": (
+        BLEND_STICK, _INSIDE + (THICK - S) * _N_T, 1, (0.0, 1.2e-3, 0.0), True,
+        (0.0, 2e-4, 0.0), "slip",
+    ),
+    "face-new-contact-beyond-edge": (
+        STICK, _BEYOND_AB + np.sqrt((THICK - S) ** 2 - 1e-8) * _N_T, 1, _SLIDE, True, None,
+        "stick",
+    ),
+}  # fmt: skip
+
+
+def face_stick_errors(case):
+    law, point, side, slip, moving, offset, regime = FACE_STICK_CASES[case]
+    pos, vel, s, vt, _ = _face_state(point, side, slip, 0.05, moving)
+    _, _, _, n, _, _ = point_triangle_contact(pos[0], *TRI, THICK, side)
+    if offset is None:
+        # the step started 3 um back along the node's slip, with the face moved a little
+        pos0 = pos - 1e-4 * vel[:, :3]
+        pos0[0] = pos[0] - 3e-6 * vt / np.linalg.norm(vt)
+        anchor, point0 = None, pos0[0]
+    else:
+        pos0 = pos
+        anchor = point0 = pos[0] - _tangential(np.asarray(offset, float), n)
+    # the anchor's in-plane barycentric weights on the face at the step's start; the anchor
+    # moves with the face by its vertices' weighted motion
+    e1, e2 = pos0[2] - pos0[1], pos0[3] - pos0[1]
+    w = np.linalg.solve(np.array([[e1 @ e1, e1 @ e2], [e1 @ e2, e2 @ e2]]),
+                        [(point0 - pos0[1]) @ e1, (point0 - pos0[1]) @ e2])  # fmt: skip
+    m = np.array([1.0 - w.sum(), *w])
+    a = _tangential(pos[0] - point0 - m @ (pos[1:] - pos0[1:]), n)
+
+    def force(p, v):
+        return _face_run(law, p, v, side, anchor=anchor, pos0=pos0)
+
+    f0, fk, fc = force(pos, vel)
+    assert _stick_regime(law, f0[:3], n, a) == regime
+    dk, dc = _central_differences(lambda p, v: force(p, v)[0], pos, vel)
+    return _compare(fk, dk, RTOL), _compare(fc, dc, RTOL)
+
+
+@pytest.mark.parametrize("case", list(FACE_STICK_CASES))
+def test_face_stick_tangents_match_finite_differences(case):
+    face_stick_errors(case)

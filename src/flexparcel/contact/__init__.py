@@ -24,6 +24,7 @@ from flexparcel.contact.law import (
     P_V_S,
     PACKED_SIZE,
     ContactLaw,
+    anchored_friction,
     friction_coefficient,
     friction_force,
     friction_force_packed,
@@ -70,4 +71,5 @@ __all__ = [
     "friction_force_packed",
     "stick_friction",
     "stick_friction_packed",
+    "anchored_friction",
 ]

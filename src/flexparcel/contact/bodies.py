@@ -14,6 +14,15 @@ translation and the box's translation, spin and velocities (``s'`` and the slip 
 configuration through ``n`` and through the arm in ``w_b x a``); the change of the arm with the
 configuration in the box moment ``a x f`` is left out (second order: ``|f| |da|`` against
 ``|a| |df|``, about ``s / |a|``).
+
+With a stick stiffness in the law (:attr:`ContactLaw.stick_stiffness`) friction follows the stick
+model (:func:`flexparcel.contact.law.anchored_friction`) instead: a tangential spring from the
+node to a *stick anchor* fixed in the box's body frame (``xi``, carried from the last accepted
+step; a new contact anchors where the node was at the step's start),
+
+    e = p - x_b - R_b xi,   a = e - (n . e) n,   F_T = -k_t a  (stick)  or  -mu_k F_N a/|a|,
+
+so the history turns and travels with the box.
 """
 
 from __future__ import annotations
@@ -22,7 +31,13 @@ import numba as nb
 import numpy as np
 
 from flexparcel.contact.geometry import point_box_contact_derivs
-from flexparcel.contact.law import P_MAX_PEN, friction_force_packed, normal_force_packed
+from flexparcel.contact.law import (
+    P_K_T,
+    P_MAX_PEN,
+    anchored_friction,
+    friction_force_packed,
+    normal_force_packed,
+)
 from flexparcel.elements.rotations import skew
 
 __all__ = ["box_contact_forces"]
@@ -48,6 +63,12 @@ def box_contact_forces(
     mass,
     v_impact,
     out_w2,
+    anchor,
+    has_anchor,
+    anchor_new,
+    has_anchor_new,
+    pos0,
+    rot0,
 ):
     """Forces of all (node, box) candidate pairs.
 
@@ -57,6 +78,10 @@ def box_contact_forces(
     derivatives of the pair's generalised force [f_node(3), F_box(3), M_box(3)] with respect to
     [x_node, x_box, spin_box] and [v_node, v_box, w_box]; ``out_dofs`` (Q, 9) their DOF numbers
     (node * 6 + i), -1 for pairs not in contact.
+    Stick model (laws with k_t > 0): ``anchor`` (Q, 3) body-frame anchors [m] of the last
+    accepted step, valid where ``has_anchor`` (Q,) is nonzero; this evaluation's anchors go to
+    ``anchor_new`` / ``has_anchor_new`` (0 for pairs out of contact); ``pos0`` (n, 3) and
+    ``rot0`` (n, 3, 3) are the step's start state.
     Returns (contacts, deepest penetration [m], its pair, worst penetration / max_penetration).
     """
     n_contact = 0
@@ -66,6 +91,7 @@ def box_contact_forces(
     for q in range(bp_node.shape[0]):
         for j in range(9):
             out_dofs[q, j] = -1
+        has_anchor_new[q] = 0.0
         act = bp_active[q]
         if act == 0.0:
             continue
@@ -94,7 +120,24 @@ def box_contact_forces(
         fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
         if abs(vn) > v_impact and mass[node] > 0.0:
             out_w2[0] = max(out_w2[0], act * dfn_ds / mass[node])
-        ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+        stick = law[P_K_T] > 0.0
+        dft_da = np.zeros((3, 3))
+        e = np.zeros(3)
+        rxi = np.zeros(3)
+        en = 0.0
+        if stick:
+            if has_anchor[q] != 0.0:
+                xi = anchor[q]
+            else:
+                xi = rot0[b].T @ (pos0[node] - pos0[b])
+            rxi = rb @ xi
+            e = p - xb - rxi
+            en = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
+            ft, u_new, dft_da, dft_dvt, dft_dfn = anchored_friction(e - en * n, vt, fn, law)
+            anchor_new[q] = rb.T @ (p - u_new - xb)
+            has_anchor_new[q] = 1.0
+        else:
+            ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
         f = act * (fn * n + ft)
         m = np.cross(a, f)
         for i in range(3):
@@ -134,6 +177,16 @@ def box_contact_forces(
         g = n + dft_dfn
         dfk = act * (np.outer(g, dfn_ds * ds + dfn_dsd * dsd_q) + fn * dn + dft_dvt @ dvt_q)
         dfc = act * (np.outer(g, dfn_dsd * dsd) + dft_dvt @ proj @ dvrel)
+        if stick:
+            # a = P e: da = P de - n (e . dn) - (n . e) dn, de/d[x_node, x_box, spin_box] =
+            # [I, -I, W(R_b xi)] (the anchor turns with the box: d(R_b xi) = dtheta x R_b xi)
+            de = np.zeros((3, 9))
+            de[:, 6:] = skew(rxi)
+            for i in range(3):
+                de[i, i] = 1.0
+                de[i, 3 + i] = -1.0
+            da_q = proj @ de - np.outer(n, e @ dn) - en * dn
+            dfk += act * (dft_da @ da_q)
         wa = skew(a)
         mk = wa @ dfk
         mc = wa @ dfc

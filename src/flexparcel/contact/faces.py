@@ -12,6 +12,20 @@ towards the node and the contact thickness ``h`` (half the two shells' thickness
 
     s = h - n . (p - closest),  v_rel = v_p - sum_i l_i v_i,  s' = -n . v_rel,
     f = F_N n + F_T on the node,  -l_i f on face vertex i.
+
+With a stick stiffness in the law, friction follows the stick model
+(:func:`flexparcel.contact.law.anchored_friction`): the tangential spring runs from the node to a
+*stick anchor* that moves with the face. The anchor is kept as a world point ``A0`` at the end
+of each accepted step (a new contact anchors where the node was at the step's start); during a
+step it moves with the node's current triangle by the (unclamped, in-plane) barycentric weights
+``m`` it had there at the step's start, so a node that slides onto the next triangle keeps its
+history:
+
+    e = p - A0 - sum_i m_i (x_i - x0_i),   a = e - (n . e) n,
+    F_T = -k_t a  (stick)  or  -mu_k F_N a/|a|.
+
+The anchor's offset from the face's plane (the contact thickness) is carried unturned through a
+step: an error of (the face's turn in one step) x (thickness), second order.
 """
 
 from __future__ import annotations
@@ -20,7 +34,13 @@ import numba as nb
 import numpy as np
 
 from flexparcel.contact.geometry import point_triangle, point_triangle_contact_derivs
-from flexparcel.contact.law import P_MAX_PEN, friction_force_packed, normal_force_packed
+from flexparcel.contact.law import (
+    P_K_T,
+    P_MAX_PEN,
+    anchored_friction,
+    friction_force_packed,
+    normal_force_packed,
+)
 
 __all__ = ["face_sides", "face_contact_forces"]
 
@@ -33,6 +53,26 @@ def face_sides(pairs, nodes, tris, pos):
         t = tris[pairs[k, 1]]
         d = point_triangle(pos[nodes[pairs[k, 0]]], pos[t[0]], pos[t[1]], pos[t[2]])[0]
         out[k] = 1.0 if d >= 0.0 else -1.0
+    return out
+
+
+@nb.njit(cache=True)
+def plane_barycentric(x, a, b, c):
+    """Barycentric weights (3,) of the projection of ``x`` onto the plane of triangle (a, b, c),
+    unclamped (outside the triangle some are negative); x, a, b, c shape (3,) [m]."""
+    e1 = b - a
+    e2 = c - a
+    d = x - a
+    d11 = e1 @ e1
+    d12 = e1 @ e2
+    d22 = e2 @ e2
+    r1 = d @ e1
+    r2 = d @ e2
+    det = d11 * d22 - d12 * d12
+    out = np.empty(3)
+    out[1] = (d22 * r1 - d12 * r2) / det
+    out[2] = (d11 * r2 - d12 * r1) / det
+    out[0] = 1.0 - out[1] - out[2]
     return out
 
 
@@ -54,9 +94,17 @@ def face_contact_forces(
     mass,
     v_impact,
     out_w2,
+    anchor,
+    has_anchor,
+    anchor_new,
+    has_anchor_new,
+    pos0,
 ):
     """Forces of one contact set; blocks (K, 12, 12) of d[f_node, f_a, f_b, f_c]/d[x_node,
     x_a, x_b, x_c] (``out_k``) and /d[v...] (``out_c``), DOF numbers (K, 12) (-1 if unused).
+    Stick model (law with k_t > 0): ``anchor`` (N, 3) world anchors [m] per node of the set at
+    the step's start, valid where ``has_anchor`` (N,) is nonzero; this evaluation's anchors go
+    to ``anchor_new`` / ``has_anchor_new``; ``pos0`` (n, 3) are the step's start positions.
     Returns (contacts, deepest penetration [m], worst penetration / max_penetration)."""
     npts = nodes.shape[0]
     best = np.full(npts, -1)
@@ -75,6 +123,8 @@ def face_contact_forces(
     n_contact = 0
     deepest = 0.0
     worst = 0.0
+    for q in range(npts):
+        has_anchor_new[q] = 0.0
     if act == 0.0:
         return 0, 0.0, 0.0
     for q in range(npts):
@@ -102,7 +152,26 @@ def face_contact_forces(
         fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
         if abs(vn) > v_impact and mass[node] > 0.0:
             out_w2[0] = max(out_w2[0], act * dfn_ds / mass[node])
-        ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+        stick = law[P_K_T] > 0.0
+        dft_da = np.zeros((3, 3))
+        e = np.zeros(3)
+        en = 0.0
+        m = np.zeros(3)
+        if stick:
+            # anchor weights on this triangle from the step's start (constant in the step)
+            a0 = anchor[q] if has_anchor[q] != 0.0 else pos0[node]
+            m = plane_barycentric(a0, pos0[t[0]], pos0[t[1]], pos0[t[2]])
+            # the anchor moves with the face by the weighted motion of its vertices; its offset
+            # off the face's plane is kept, so a new contact starts without a spring
+            e = pos[node] - a0
+            for v in range(3):
+                e -= m[v] * (pos[t[v]] - pos0[t[v]])
+            en = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
+            ft, u_new, dft_da, dft_dvt, dft_dfn = anchored_friction(e - en * n, vt, fn, law)
+            anchor_new[q] = pos[node] - u_new
+            has_anchor_new[q] = 1.0
+        else:
+            ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
         f = act * (fn * n + ft)
         w = np.empty(4)
         w[0] = 1.0
@@ -128,6 +197,15 @@ def face_contact_forces(
         proj = np.eye(3) - np.outer(n, n)
         dvt_x = proj @ dvrel_x - np.outer(n, vdn) - vn * dn
         dfx = act * (np.outer(g, dfn_ds * ds + dfn_dsd * dsd_x) + fn * dn + dft_dvt @ dvt_x)
+        if stick:
+            # a = P e: da = P de - n (e . dn) - (n . e) dn, de/d[x_node, x_a, x_b, x_c] =
+            # [I, -m_a I, -m_b I, -m_c I]
+            de = np.zeros((3, 12))
+            for i in range(3):
+                de[i, i] = 1.0
+                for v in range(3):
+                    de[i, 3 + 3 * v + i] = -m[v]
+            dfx += act * (dft_da @ (proj @ de - np.outer(n, e @ dn) - en * dn))
         dvrel = np.zeros((3, 12))
         for a in range(4):
             for i in range(3):

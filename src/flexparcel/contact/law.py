@@ -92,6 +92,7 @@ __all__ = [
     "friction_force_packed",
     "stick_friction",
     "stick_friction_packed",
+    "anchored_friction",
 ]
 
 # Damping option codes as stored in the packed vector (an int code keeps kernels branch-cheap).
@@ -720,3 +721,61 @@ def stick_friction_packed(
     return stick_friction(
         u_el_prev, du_t, f_n, p[P_K_T], p[P_MU_S], p[P_MU_D], p[P_V_S], p[P_V_D], dt
     )
+
+
+@nb.njit(cache=True)
+def anchored_friction(
+    a: np.ndarray, vt: np.ndarray, f_n: float, p: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Stick model for contacts whose surface moves and turns (a rigid box, a shell face).
+
+    Same return map as :func:`stick_friction`, written for a *stick anchor*: a point fixed to
+    the other surface (in its body frame, or by barycentric weights on a face) where the
+    tangential spring is attached. ``a`` is the tangential part of (contact point - anchor),
+    i.e. the trial elastic displacement of :func:`stick_friction`; keeping the anchor on the
+    surface carries the history with the surface's own rigid motion and turning, which a world-
+    frame u_el would not.
+
+    * stick if k_t |a| <= mu_s F_N: F_T = -k_t a, elastic displacement a;
+    * slip otherwise: F_T = -mu_k(|vt|) F_N a/|a|, elastic displacement mu_k F_N a/(k_t |a|)
+      (the anchor is dragged along), mu_k from :func:`slip_friction_coefficient` at the current
+      slip speed |vt| (eqs. 9, 10 with a plateau mu_s below v_s).
+
+    Args:
+        a: trial elastic tangential displacement [m], shape (3,).
+        vt: tangential slip velocity [m/s], shape (3,) (sets mu_k while slipping).
+        f_n: normal force [N] >= 0.
+        p: packed law (:meth:`ContactLaw.packed`, k_t > 0).
+
+    Returns:
+        F_T [N] (3,), new elastic displacement [m] (3,) (the anchor moves to point - it),
+        dF_T/da [N/m] (3, 3), dF_T/dvt [N s/m] (3, 3), dF_T/dF_N [-] (3,).
+    """
+    k_t = p[P_K_T]
+    mu_s = p[P_MU_S]
+    a_norm = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    f = np.empty(3)
+    u_new = np.empty(3)
+    dfa = np.zeros((3, 3))
+    dfv = np.zeros((3, 3))
+    dfn = np.zeros(3)
+    if k_t * a_norm <= mu_s * f_n:
+        for i in range(3):
+            f[i] = -k_t * a[i]
+            u_new[i] = a[i]
+            dfa[i, i] = -k_t
+        return f, u_new, dfa, dfv, dfn
+    # Slip; |a| > 0 because k_t |a| > mu_s F_N >= 0.
+    speed = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2])
+    mu_k, dmu_k = slip_friction_coefficient(speed, mu_s, p[P_MU_D], p[P_V_S], p[P_V_D])
+    for i in range(3):
+        ni = a[i] / a_norm
+        f[i] = -mu_k * f_n * ni
+        u_new[i] = mu_k * f_n * ni / k_t
+        dfn[i] = -mu_k * ni
+        for j in range(3):
+            nj = a[j] / a_norm
+            dfa[i, j] = -f_n * mu_k * ((1.0 if i == j else 0.0) - ni * nj) / a_norm
+            if dmu_k != 0.0 and speed > 0.0:
+                dfv[i, j] = -f_n * ni * dmu_k * vt[j] / speed
+    return f, u_new, dfa, dfv, dfn

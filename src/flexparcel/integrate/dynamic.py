@@ -174,6 +174,27 @@ def _box_half_at(m: Model, t: float) -> np.ndarray:
     return half
 
 
+class _StickAnchors:
+    """Stick-model history of coupled contacts (node-box pairs, node-face sets): an anchor
+    point (3,) per contact and whether it holds one. The kernels read the committed anchors of
+    the last accepted step and write each evaluation's anchors to the trial arrays (a contact
+    out of touch writes none, so it loses its spring); :meth:`commit` keeps the trial of the
+    accepted step."""
+
+    def __init__(self, count: int) -> None:
+        self.anchor = np.zeros((count, 3))
+        self.has = np.zeros(count)
+        self.anchor_trial = np.zeros((count, 3))
+        self.has_trial = np.zeros(count)
+
+    def kernel_args(self):
+        return self.anchor, self.has, self.anchor_trial, self.has_trial
+
+    def commit(self) -> None:
+        self.anchor = self.anchor_trial.copy()
+        self.has = self.has_trial.copy()
+
+
 class GeneralizedAlpha:
     """Steps a :class:`State` of a :class:`Model` in time. ``step`` advances one accepted step."""
 
@@ -215,6 +236,9 @@ class GeneralizedAlpha:
         self._inv_mass = np.divide(1.0, mt, out=np.zeros_like(mt), where=mt > 0)
         self._u_el = np.zeros((model.cp_node.size, 3))  # stick-model history per contact point
         self._u_el_trial = self._u_el.copy()
+        # stick anchors of node-box pairs (box frame) and of each node-face set's nodes (world)
+        self._box_anchors = _StickAnchors(model.bp_node.size)
+        self._face_anchors = [_StickAnchors(fs[0].size) for fs in model.face_sets]
         self._h_now = self.opt.dt_initial
         # node masses as the impact step limit sees them: an infinite mass never limits
         self._node_mass = np.ascontiguousarray(model.mass[:, 0]).copy()
@@ -315,7 +339,8 @@ class GeneralizedAlpha:
                 m.bp_node, m.bp_box, m.bp_radius, m.bp_law, factors[m.bp_schedule],
                 _box_half_at(m, t), m.box_radius_by_node, m.contact_laws, s.positions,
                 s.rotations, s.velocities, fc, bk, bc, dofs, self._node_mass,
-                self.opt.impact_speed, w2,
+                self.opt.impact_speed, w2, *self._box_anchors.kernel_args(),
+                self._s0.positions, self._s0.rotations,
             )  # fmt: skip
             self._coupled_blocks.append((bk, bc, dofs))
             deeper = binfo[1] > info[1]
@@ -333,8 +358,8 @@ class GeneralizedAlpha:
             )  # fmt: skip
             self._coupled_blocks.append((ek, ec, dofs))
             info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
-        for (nodes, tris, thick, law, sched), (pairs, sides) in zip(
-            m.face_sets, self._face_cands, strict=True
+        for (nodes, tris, thick, law, sched), (pairs, sides), anchors in zip(
+            m.face_sets, self._face_cands, self._face_anchors, strict=True
         ):
             k = pairs.shape[0]
             fk = np.zeros((k, 12, 12))
@@ -343,7 +368,7 @@ class GeneralizedAlpha:
             nc, depth, ratio = face_contact_forces(
                 pairs, sides, nodes, tris, thick, m.contact_laws[law], factors[sched],
                 s.positions, s.velocities, fc, fk, fcv, dofs, self._node_mass,
-                self.opt.impact_speed, w2,
+                self.opt.impact_speed, w2, *anchors.kernel_args(), self._s0.positions,
             )  # fmt: skip
             self._coupled_blocks.append((fk, fcv, dofs))
             info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
@@ -719,6 +744,9 @@ class GeneralizedAlpha:
             if self._fc_trial is not None:
                 self._fc_prev = self._fc_trial
             self._u_el = self._u_el_trial.copy()  # commit the stick-model history
+            self._box_anchors.commit()
+            for anchors in self._face_anchors:
+                anchors.commit()
             self._alg = a1
             self.stats.steps += 1
             return s1
