@@ -561,3 +561,16 @@ def test_bad_input_through_paper_units():
         ContactLaw.from_paper_units(c_N_per_mm=611, s_max_mm=0)
     with pytest.raises(ValueError, match=r"v_dynamic \(v_d\) must be > v_static"):
         ContactLaw.from_paper_units(c_N_per_mm=611, v_static_mm_s=2.0, v_dynamic_mm_s=2.0)
+
+
+def test_with_stick_model_defaults_to_the_normal_stiffness():
+    law = ContactLaw.from_paper_units(c_N_per_mm=649, d_Ns_per_mm=0.579, mu_static=0.3)
+    assert law.stick_stiffness is None
+    assert law.with_stick_model().stick_stiffness == pytest.approx(649e3)
+    assert law.with_stick_model(1e4).stick_stiffness == 1e4
+    assert law.with_stick_model().packed()[P_K_T] == pytest.approx(649e3)
+    hertz = ContactLaw(stiffness=2e7, stiffness_exponent=1.5)
+    with pytest.raises(ValueError, match="stick_stiffness"):
+        hertz.with_stick_model()
+    with pytest.raises(ValueError, match="k_t"):
+        law.with_stick_model(-1.0)

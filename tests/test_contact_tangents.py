@@ -72,8 +72,9 @@ ACT = 0.8  # schedule factor, to check that it scales the blocks too
 S = 5e-5  # penetration [m]: the middle of the STEP damping ramp (s_max = 0.1 mm)
 
 # the consignments' packaging-content law (paper Table 6: 649 N/mm, 0.579 Ns/mm STEP damping over
-# 0.1 mm, mu = 0.3); R_df = 0 there, so its rebound branch is F_N = 0
-CONTENT = default_packaging_content_law()
+# 0.1 mm, mu = 0.3) with the paper's regularised friction (eq. 8; the stick model's blocks are
+# checked further down); R_df = 0 there, so its rebound branch is F_N = 0
+CONTENT = default_packaging_content_law(stick_model=False)
 # the same with a static coefficient above the dynamic one (a real STEP5 blend between v_s and
 # v_d) and R_df = 0.5 (a rebound branch that carries force)
 BLEND = replace(CONTENT, mu_static=0.4, rebound_damping_factor=0.5)

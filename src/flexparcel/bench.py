@@ -61,6 +61,9 @@ def _sheet_swing(quick: bool = False, progress=None) -> dict:
     }
 
 
+_FRICTION_MODEL = "stick model, k_t = c (ContactLaw.with_stick_model)"
+
+
 def _envelope_drop(quick: bool = False, progress=None) -> dict:
     from flexparcel.scenarios.envelope_drop import EnvelopeDrop, envelope_drop_model
     from flexparcel.simulate import simulate
@@ -100,6 +103,7 @@ def _envelope_drop(quick: bool = False, progress=None) -> dict:
         "case": "envelope-drop",
         "description": "rigid 100 g box (165x125x20 mm) in a 275x200 mm two-layer shell "
         "envelope, 10 mm quads, dropped flat from 200 mm onto a rigid plate",
+        "friction_model": _FRICTION_MODEL if case.stick_model else "regularised (paper eq. 8)",
         "simulated_s": case.t_end,
         "wall_s": wall,
         "dof_count": model.dof_count,
@@ -402,6 +406,7 @@ def _kpbw_tests(
     return {
         "case": "kpbw-tests",
         "description": "KP/BW swing, vertical and horizontal drop, Table 6 parameters",
+        "friction_model": _FRICTION_MODEL,
         "element_size_mm": snap.build.element_size * 1e3,
         "assembly_wall_s": assembly_wall,
         "rows": rows,

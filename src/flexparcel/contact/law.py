@@ -52,7 +52,7 @@ Packed parameter layout (``float64`` array of length :data:`PACKED_SIZE`)::
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numba as nb
@@ -159,9 +159,10 @@ class ContactLaw:
         max_penetration: [m], > 0, or None. Not part of the force law: callers flag or stop a run
             when a contact penetrates deeper (see :meth:`penetration_exceeded`).
         stick_stiffness: k_t [N/m], > 0, or None. When given, callers use the stick model
-            (:func:`stick_friction`) instead of the regularised law (:func:`friction_force`):
-            a tangential spring of stiffness k_t whose force is capped at mu_s * F_N while
-            sticking; a resting contact then creeps by at most mu_s * F_N / k_t.
+            (:func:`stick_friction` on planes, :func:`anchored_friction` on boxes and faces)
+            instead of the regularised law (:func:`friction_force`): a tangential spring of
+            stiffness k_t whose force is capped at mu_s * F_N while sticking; a resting contact
+            then creeps by at most mu_s * F_N / k_t. See :meth:`with_stick_model`.
     """
 
     stiffness: float
@@ -227,6 +228,19 @@ class ContactLaw:
                     f"ContactLaw.{name} ({symbol}) must be > 0 {unit} or None, got {v!r}"
                 )
             put(name, v)
+
+    def with_stick_model(self, stick_stiffness: float | None = None) -> ContactLaw:
+        """This law with the stick model on: k_t = ``stick_stiffness`` [N/m], by default the
+        normal stiffness c of a linear law (m_s = 1), i.e. a tangential penalty as stiff as the
+        normal one, whose slip before breaking loose is mu_s times the normal penetration."""
+        if stick_stiffness is None:
+            if self.stiffness_exponent != 1.0:
+                raise ValueError(
+                    "ContactLaw.with_stick_model: give stick_stiffness [N/m] for a nonlinear "
+                    f"spring (stiffness_exponent = {self.stiffness_exponent!r})"
+                )
+            stick_stiffness = self.stiffness
+        return replace(self, stick_stiffness=stick_stiffness)
 
     # ---------------------------------------------------------------------------------- conversion
 

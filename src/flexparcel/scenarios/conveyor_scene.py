@@ -558,9 +558,12 @@ def load_scene_file(path: str | Path) -> SceneFile:
 # ------------------------------------------------------------------------------ the model
 
 
-def belt_law() -> ContactLaw:
-    """Packaging-ground normal law of the paper's Table 6 (friction set per pair)."""
-    return ContactLaw.from_paper_units(**_GROUND_LAW)
+def belt_law(stick_model: bool = True) -> ContactLaw:
+    """Packaging-ground normal law of the paper's Table 6 (friction set per pair), with the
+    stick model (k_t = c) unless ``stick_model`` is False (see
+    :func:`flexparcel.consignments.build.default_packaging_content_law`)."""
+    law = ContactLaw.from_paper_units(**_GROUND_LAW)
+    return law.with_stick_model() if stick_model else law
 
 
 @dataclass

@@ -6,7 +6,9 @@ Packaging: the KP/BW material of the paper's Table 6 (E = 926 MPa, nu = 0.1, bet
 0.3 mm thick, 40 g over both layers (140 g consignment minus the 100 g content). Content: the
 KP/BW content box of Table 2, 165 x 125 x 20 mm, 3 mm edge radius. Contact laws: Table 6
 (packaging-content 649 N/mm, 0.579 Ns/mm; packaging-ground 611 N/mm, 0.591 Ns/mm) with the STEP
-damping option over s_max = 0.1 mm, friction 0.3 (the paper's friction values are not given).
+damping option over s_max = 0.1 mm, friction 0.3 (the paper's friction values are not given),
+by the stick model with k_t = c unless ``stick_model`` is False (then the paper's regularised
+eq. 8; see :func:`flexparcel.consignments.build.default_packaging_content_law`).
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ class EnvelopeDrop:
     element_size: float = 0.010
     drop_height: float = 0.200
     t_end: float = 0.3
+    stick_model: bool = True
 
 
 def envelope_drop_model(case: EnvelopeDrop | None = None) -> tuple[Model, int, np.ndarray]:
@@ -62,6 +65,8 @@ def envelope_drop_model(case: EnvelopeDrop | None = None) -> tuple[Model, int, n
     ground_law = ContactLaw.from_paper_units(
         c_N_per_mm=611, d_Ns_per_mm=0.591, s_max_mm=0.1, mu_static=0.3, mu_dynamic=0.3
     )
+    if c.stick_model:
+        content_law, ground_law = content_law.with_stick_model(), ground_law.with_stick_model()
     b.add_body_contact(env, box, content_law, radius=c.thickness / 2)
     b.add_contact(env, plate, ground_law, radius=c.thickness / 2)
     return b.finalize(), box, env
