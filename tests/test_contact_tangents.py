@@ -43,7 +43,7 @@ import numpy as np
 import pytest
 
 from flexparcel.consignments.build import default_packaging_content_law
-from flexparcel.contact.bodies import box_contact_forces
+from flexparcel.contact.bodies import box_contact_forces, edge_box_forces
 from flexparcel.contact.edges import edge_plane_forces
 from flexparcel.contact.faces import face_contact_forces
 from flexparcel.contact.geometry import (
@@ -604,3 +604,111 @@ def face_stick_errors(case):
 @pytest.mark.parametrize("case", list(FACE_STICK_CASES))
 def test_face_stick_tangents_match_finite_differences(case):
     face_stick_errors(case)
+
+
+# --------------------------------------------------------------------------------------------------
+# shell edge against a rounded box (line contact, edge_box_forces)
+# --------------------------------------------------------------------------------------------------
+
+
+def _edge_box_run(law, pos, rot, vel):
+    """Forces [f_i, f_j, F_box, M_box] (12,) and blocks (12, 12) of one edge (nodes 0, 1)
+    against the box (node 2), 3 stations."""
+    f = np.zeros((3, 6))
+    ek = np.zeros((1, 12, 12))
+    ec = np.zeros((1, 12, 12))
+    dofs = np.zeros((1, 12), dtype=np.int64)
+    half = np.zeros((3, 3))
+    half[2] = HALF
+    radius = np.array([0.0, 0.0, R_BOX])
+    nc = edge_box_forces(
+        np.array([[0, 1]]), 2, R_NODE, SAMPLES, law.packed(), ACT, half, radius, pos, rot, vel,
+        f, ek, ec, dofs, np.ones(3), 1e9, np.zeros(1),
+    )[0]  # fmt: skip
+    assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 12, 13, 14, 15, 16, 17]
+    return np.concatenate([f[0, :3], f[1, :3], f[2]]), ek[0], ec[0], nc
+
+
+def _edge_box_state(local_ends, slips, sdot, motion):
+    """Edge nodes at ``local_ends`` (2, 3) in the box frame; node velocities = the box's
+    material velocity there + slip - sdot * (box frame z axis)."""
+    rot = np.array([np.eye(3), np.eye(3), R0])
+    pos = np.array([X_BOX + R0 @ np.asarray(p) for p in local_ends] + [X_BOX])
+    vel = np.zeros((3, 6))
+    vel[2, :3] = motion.get("v_box", (0.0, 0.0, 0.0))
+    vel[2, 3:] = motion.get("w_box", (0.0, 0.0, 0.0))
+    up = R0[:, 2]
+    for k in range(2):
+        vel[k, :3] = vel[2, :3] + np.cross(vel[2, 3:], pos[k] - X_BOX) + slips[k] - sdot * up
+    return pos, rot, vel
+
+
+_TOP_Z = HALF[2] + R_BOX + R_NODE
+EDGE_BOX_CASES = {
+    # name: (law, ends in the box frame, slips [m/s], sdot [m/s], box motion, stations in
+    #        contact)
+    "edge-on-top-face-sliding": (
+        CONTENT, [(-0.01, 0.0, _TOP_Z - S), (0.02, 0.01, _TOP_Z - 0.6 * S)],
+        [(0.02, 0.0, 0.0), (0.015, 0.01, 0.0)], 0.05, _MOVING, 3,
+    ),
+    "edge-over-rim-tilted": (
+        # stations at 4.25 and 1.75 mm inside the top face's rim and 0.75 mm beyond it, on the
+        # rounded edge, each about 5e-5 m deep
+        CONTENT,
+        [(HALF[0] - 0.0055, 0.0, _TOP_Z - 2.7e-5), (HALF[0] + 0.002, 0.0, _TOP_Z - 1.65e-4)],
+        [(0.02, 0.0, 0.0), (0.02, 0.0, 0.0)], 0.05, _MOVING, 3,
+    ),
+    "edge-in-the-friction-blend": (
+        BLEND, [(-0.01, 0.0, _TOP_Z - S), (0.02, 0.01, _TOP_Z - 0.6 * S)],
+        [(1.2e-3, 0.0, 0.0), (1.2e-3, 0.0, 0.0)], 0.05, _MOVING, 3,
+    ),
+}  # fmt: skip
+
+
+def edge_box_errors(case):
+    """(error of the force rows of the position block, of the velocity block, of the whole
+    position block incl. the box moment rows) relative to the blocks' maxima."""
+    law, ends, slips, sdot, motion, contacts = EDGE_BOX_CASES[case]
+    slips = [R0 @ np.asarray(v, float) for v in slips]
+    pos, rot, vel = _edge_box_state(ends, slips, sdot, motion)
+    _, ek, ec, nc = _edge_box_run(law, pos, rot, vel)
+    assert nc == contacts
+    fk = np.zeros((12, 12))
+    fc = np.zeros((12, 12))
+    for j in range(12):
+        node, i = divmod(j, 3)
+        if node < 3:  # translations of nodes 0, 1 and the box
+            pp, pm = pos.copy(), pos.copy()
+            pp[node, i] += H_X
+            pm[node, i] -= H_X
+            rp = rm = rot
+            h = H_X
+        else:  # box spin
+            e = np.zeros(3)
+            e[i] = H_TH
+            rp, rm = rot.copy(), rot.copy()
+            rp[2] = rotation_exp(e) @ rot[2]
+            rm[2] = rotation_exp(-e) @ rot[2]
+            pp = pm = pos
+            h = H_TH
+        fk[:, j] = (_edge_box_run(law, pp, rp, vel)[0] - _edge_box_run(law, pm, rm, vel)[0]) / (
+            2 * h
+        )
+        vp, vm = vel.copy(), vel.copy()
+        row, col = (node, i) if node < 3 else (2, 3 + i)
+        vp[row, col] += H_V
+        vm[row, col] -= H_V
+        fc[:, j] = (_edge_box_run(law, pos, rot, vp)[0] - _edge_box_run(law, pos, rot, vm)[0]) / (
+            2 * H_V
+        )
+    # the box moment rows leave out the arm's change (as for node-box pairs): compared to the
+    # looser RTOL_ARM; the force rows have no left-out term
+    scale = np.abs(ek).max()
+    err_force = np.abs(fk[:9] - ek[:9]).max() / scale
+    assert err_force <= RTOL, f"force rows: {err_force:.2e}"
+    return err_force, _compare(ec, fc, RTOL), _compare(ek, fk, RTOL_ARM)
+
+
+@pytest.mark.parametrize("case", list(EDGE_BOX_CASES))
+def test_edge_box_tangents_match_finite_differences(case):
+    edge_box_errors(case)

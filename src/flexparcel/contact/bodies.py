@@ -23,6 +23,11 @@ step; a new contact anchors where the node was at the step's start),
     e = p - x_b - R_b xi,   a = e - (n . e) n,   F_T = -k_t a  (stick)  or  -mu_k F_N a/|a|,
 
 so the history turns and travels with the box.
+
+Line contact (:func:`edge_box_forces`): a shell edge (nodes i, j) is sampled at ``k`` stations
+``p = (1 - xi) x_i + xi x_j`` as in :mod:`flexparcel.contact.edges`, each a contact point
+against the box with the law scaled by 1/k; a station's force is shared by the two nodes as
+``(1 - xi) f`` and ``xi f``. Stations use the regularised friction law (no stick history).
 """
 
 from __future__ import annotations
@@ -40,7 +45,87 @@ from flexparcel.contact.law import (
 )
 from flexparcel.elements.rotations import skew
 
-__all__ = ["box_contact_forces"]
+__all__ = ["box_contact_forces", "edge_box_forces"]
+
+
+@nb.njit(cache=True)
+def _point_box_pair(p, vp, xb, rb, vb, wb, half, r_box, r_p, law, scale, stick, xi):
+    """One contact point (position ``p``, velocity ``vp``, radius ``r_p``) against a rounded
+    box; the law's force scaled by ``scale``. ``stick``: use the stick model with the
+    body-frame anchor ``xi`` (3,).
+
+    Returns (s, force f (3,) on the point, arm a (3,) from the box centre, dF/d[p, x_b,
+    spin_b] (3, 9), dF/d[v_p, v_b, w_b] (3, 9), new elastic displacement (3,), dF_N/ds, normal
+    velocity n . v_rel); s <= 0: no contact (the other outputs are zeros).
+    """
+    s, n, c, _, dn_dp, ds_dth, dn_dth = point_box_contact_derivs(p, xb, rb, half, r_box, r_p)
+    dfk = np.zeros((3, 9))
+    dfc = np.zeros((3, 9))
+    f = np.zeros(3)
+    a = np.zeros(3)
+    u_new = np.zeros(3)
+    if s <= 0.0:
+        return s, f, a, dfk, dfc, u_new, 0.0, 0.0
+    a = c + r_box * n - xb
+    vrel = vp - vb - np.cross(wb, a)
+    vn = n[0] * vrel[0] + n[1] * vrel[1] + n[2] * vrel[2]
+    vt = vrel - vn * n
+    fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
+    dft_da = np.zeros((3, 3))
+    e = np.zeros(3)
+    rxi = np.zeros(3)
+    en = 0.0
+    if stick:
+        rxi = rb @ xi
+        e = p - xb - rxi
+        en = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
+        ft, u_new, dft_da, dft_dvt, dft_dfn = anchored_friction(e - en * n, vt, fn, law)
+    else:
+        ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+    f = scale * (fn * n + ft)
+    # d s / d[p, x_box, spin_box]
+    ds = np.zeros(9)
+    ds[:3] = -n
+    ds[3:6] = n
+    ds[6:] = ds_dth
+    # d n / d[...] (3 x 9)
+    dn = np.zeros((3, 9))
+    dn[:, :3] = dn_dp
+    dn[:, 3:6] = -dn_dp
+    dn[:, 6:] = dn_dth
+    # d s' / d[v_p, v_box, w_box] with s' = -n . vrel
+    dsd = np.zeros(9)
+    dsd[:3] = -n
+    dsd[3:6] = n
+    dsd[6:] = np.cross(a, n)  # n . (w_b x a) = w_b . (a x n)
+    proj = np.eye(3) - np.outer(n, n)
+    dvrel = np.zeros((3, 9))
+    dvrel[:, :3] = np.eye(3)
+    dvrel[:, 3:6] = -np.eye(3)
+    dvrel[:, 6:] = skew(a)
+    # s' = -n . vrel and vt = vrel - (n . vrel) n change with the configuration through n
+    # and through the arm in w_b x a, a = p - x_b + (s - r_p) n (outside and deep inside)
+    da = np.outer(n, ds) + (s - r_p) * dn
+    for i in range(3):
+        da[i, i] += 1.0
+        da[i, 3 + i] -= 1.0
+    dvrel_q = -skew(wb) @ da
+    vdn = vrel @ dn
+    dsd_q = -(vdn + n @ dvrel_q)
+    dvt_q = proj @ dvrel_q - np.outer(n, vdn) - vn * dn
+    g = n + dft_dfn
+    dfk = scale * (np.outer(g, dfn_ds * ds + dfn_dsd * dsd_q) + fn * dn + dft_dvt @ dvt_q)
+    dfc = scale * (np.outer(g, dfn_dsd * dsd) + dft_dvt @ proj @ dvrel)
+    if stick:
+        # a = P e: da = P de - n (e . dn) - (n . e) dn, de/d[p, x_box, spin_box] =
+        # [I, -I, W(R_b xi)] (the anchor turns with the box: d(R_b xi) = dtheta x R_b xi)
+        de = np.zeros((3, 9))
+        de[:, 6:] = skew(rxi)
+        for i in range(3):
+            de[i, i] = 1.0
+            de[i, 3 + i] = -1.0
+        dfk += scale * (dft_da @ (proj @ de - np.outer(n, e @ dn) - en * dn))
+    return s, f, a, dfk, dfc, u_new, dfn_ds, vn
 
 
 @nb.njit(cache=True)
@@ -97,96 +182,35 @@ def box_contact_forces(
             continue
         node = bp_node[q]
         b = bp_box[q]
-        p = pos[node]
-        xb = pos[b]
-        rb = rot[b]
-        s, n, c, region, dn_dp, ds_dth, dn_dth = point_box_contact_derivs(
-            p, xb, rb, box_half[b], box_radius[b], bp_radius[q]
-        )
+        law = laws[bp_law[q]]
+        stick = law[P_K_T] > 0.0
+        if has_anchor[q] != 0.0:
+            xi = anchor[q].copy()
+        else:
+            # a new contact anchors where the node was at the step's start, carried by the box
+            xi = rot0[b].T @ (pos0[node] - pos0[b])
+        s, f, a, dfk, dfc, u_new, dfn_ds, vn = _point_box_pair(
+            pos[node], vel[node, :3], pos[b], rot[b], vel[b, :3], vel[b, 3:], box_half[b],
+            box_radius[b], bp_radius[q], law, act, stick, xi,
+        )  # fmt: skip
         if s <= 0.0:
             continue
-        law = laws[bp_law[q]]
         n_contact += 1
         if s > deepest:
             deepest = s
             deepest_pair = q
         if s / law[P_MAX_PEN] > worst:
             worst = s / law[P_MAX_PEN]
-        a = c + box_radius[b] * n - xb
-        wb = vel[b, 3:]
-        vrel = vel[node, :3] - vel[b, :3] - np.cross(wb, a)
-        vn = n[0] * vrel[0] + n[1] * vrel[1] + n[2] * vrel[2]
-        vt = vrel - vn * n
-        fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
         if abs(vn) > v_impact and mass[node] > 0.0:
             out_w2[0] = max(out_w2[0], act * dfn_ds / mass[node])
-        stick = law[P_K_T] > 0.0
-        dft_da = np.zeros((3, 3))
-        e = np.zeros(3)
-        rxi = np.zeros(3)
-        en = 0.0
         if stick:
-            if has_anchor[q] != 0.0:
-                xi = anchor[q]
-            else:
-                xi = rot0[b].T @ (pos0[node] - pos0[b])
-            rxi = rb @ xi
-            e = p - xb - rxi
-            en = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
-            ft, u_new, dft_da, dft_dvt, dft_dfn = anchored_friction(e - en * n, vt, fn, law)
-            anchor_new[q] = rb.T @ (p - u_new - xb)
+            anchor_new[q] = rot[b].T @ (pos[node] - u_new - pos[b])
             has_anchor_new[q] = 1.0
-        else:
-            ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
-        f = act * (fn * n + ft)
         m = np.cross(a, f)
         for i in range(3):
             out_f[node, i] += f[i]
             out_f[b, i] -= f[i]
             out_f[b, 3 + i] -= m[i]
-        # d s / d[x_node, x_box, spin_box]
-        ds = np.zeros(9)
-        ds[:3] = -n
-        ds[3:6] = n
-        ds[6:] = ds_dth
-        # d n / d[...] (3 x 9)
-        dn = np.zeros((3, 9))
-        dn[:, :3] = dn_dp
-        dn[:, 3:6] = -dn_dp
-        dn[:, 6:] = dn_dth
-        # d s' / d[v_node, v_box, w_box] with s' = -n . vrel
-        dsd = np.zeros(9)
-        dsd[:3] = -n
-        dsd[3:6] = n
-        dsd[6:] = np.cross(a, n)  # n . (w_b x a) = w_b . (a x n)
-        proj = np.eye(3) - np.outer(n, n)
-        dvrel = np.zeros((3, 9))
-        dvrel[:, :3] = np.eye(3)
-        dvrel[:, 3:6] = -np.eye(3)
-        dvrel[:, 6:] = skew(a)
-        # s' = -n . vrel and vt = vrel - (n . vrel) n change with the configuration through n
-        # and through the arm in w_b x a, a = p - x_b + (s - r_p) n (outside and deep inside)
-        da = np.outer(n, ds) + (s - bp_radius[q]) * dn
-        for i in range(3):
-            da[i, i] += 1.0
-            da[i, 3 + i] -= 1.0
-        dvrel_q = -skew(wb) @ da
-        vdn = vrel @ dn
-        dsd_q = -(vdn + n @ dvrel_q)
-        dvt_q = proj @ dvrel_q - np.outer(n, vdn) - vn * dn
-        g = n + dft_dfn
-        dfk = act * (np.outer(g, dfn_ds * ds + dfn_dsd * dsd_q) + fn * dn + dft_dvt @ dvt_q)
-        dfc = act * (np.outer(g, dfn_dsd * dsd) + dft_dvt @ proj @ dvrel)
-        if stick:
-            # a = P e: da = P de - n (e . dn) - (n . e) dn, de/d[x_node, x_box, spin_box] =
-            # [I, -I, W(R_b xi)] (the anchor turns with the box: d(R_b xi) = dtheta x R_b xi)
-            de = np.zeros((3, 9))
-            de[:, 6:] = skew(rxi)
-            for i in range(3):
-                de[i, i] = 1.0
-                de[i, 3 + i] = -1.0
-            da_q = proj @ de - np.outer(n, e @ dn) - en * dn
-            dfk += act * (dft_da @ da_q)
         wa = skew(a)
         mk = wa @ dfk
         mc = wa @ dfc
@@ -203,3 +227,91 @@ def box_contact_forces(
             out_dofs[q, 3 + i] = 6 * b + i
             out_dofs[q, 6 + i] = 6 * b + 3 + i
     return n_contact, deepest, deepest_pair, worst
+
+
+@nb.njit(cache=True)
+def edge_box_forces(
+    edges, box, radius, samples, law, act, box_half, box_radius, pos, rot, vel, out_f, out_k,
+    out_c, out_dofs, mass, v_impact, out_w2,
+):  # fmt: skip
+    """Line contact of shell edges (E, 2) with the rounded box of rigid node ``box``; edge
+    contact radius ``radius`` [m], ``samples`` stations per edge, packed ``law``, schedule
+    factor ``act``; ``box_half`` (n, 3), ``box_radius`` (n,) per node id as for
+    :func:`box_contact_forces`. Outputs: ``out_f`` (n, 6) accumulated; blocks (E, 12, 12) of
+    d[f_i, f_j, F_box, M_box] / d[x_i, x_j, x_box, spin_box] (``out_k``) and / d[v_i, v_j,
+    v_box, w_box] (``out_c``); DOF numbers (E, 12), -1 for edges not in contact.
+    Returns (stations in contact, deepest penetration [m], worst penetration / max)."""
+    n_contact = 0
+    deepest = 0.0
+    worst = 0.0
+    scale = act / samples
+    xb = pos[box]
+    rb = rot[box]
+    vb = vel[box, :3]
+    wb = vel[box, 3:]
+    half = box_half[box]
+    r_box = box_radius[box]
+    xi = np.zeros(3)
+    for e in range(edges.shape[0]):
+        for j in range(12):
+            out_dofs[e, j] = -1
+        if act == 0.0:
+            continue
+        i0, i1 = edges[e, 0], edges[e, 1]
+        touched = False
+        for st in range(samples):
+            t = (st + 0.5) / samples
+            w = np.array([1.0 - t, t])
+            p = w[0] * pos[i0] + w[1] * pos[i1]
+            vp = w[0] * vel[i0, :3] + w[1] * vel[i1, :3]
+            s, f, a, dfk, dfc, _, dfn_ds, vn = _point_box_pair(
+                p, vp, xb, rb, vb, wb, half, r_box, radius, law, scale, False, xi
+            )
+            if s <= 0.0:
+                continue
+            touched = True
+            n_contact += 1
+            deepest = max(deepest, s)
+            worst = max(worst, s / law[P_MAX_PEN])
+            mw = w[0] * mass[i0] + w[1] * mass[i1]
+            if abs(vn) > v_impact and mw > 0.0:
+                out_w2[0] = max(out_w2[0], scale * dfn_ds / mw)
+            m = np.cross(a, f)
+            for r in range(3):
+                out_f[i0, r] += w[0] * f[r]
+                out_f[i1, r] += w[1] * f[r]
+                out_f[box, r] -= f[r]
+                out_f[box, 3 + r] -= m[r]
+            # rows: [w0 f, w1 f, -f, -(a x f)]; columns: d/dx_i = w0 d/dp, d/dx_j = w1 d/dp,
+            # then the box's translation and spin as they are
+            wa = skew(a)
+            mk = wa @ dfk
+            mc = wa @ dfc
+            rows_k = np.zeros((12, 9))
+            rows_c = np.zeros((12, 9))
+            for r in range(3):
+                for c in range(9):
+                    rows_k[r, c] = w[0] * dfk[r, c]
+                    rows_k[3 + r, c] = w[1] * dfk[r, c]
+                    rows_k[6 + r, c] = -dfk[r, c]
+                    rows_k[9 + r, c] = -mk[r, c]
+                    rows_c[r, c] = w[0] * dfc[r, c]
+                    rows_c[3 + r, c] = w[1] * dfc[r, c]
+                    rows_c[6 + r, c] = -dfc[r, c]
+                    rows_c[9 + r, c] = -mc[r, c]
+            for r in range(12):
+                for c in range(3):
+                    out_k[e, r, c] += w[0] * rows_k[r, c]
+                    out_k[e, r, 3 + c] += w[1] * rows_k[r, c]
+                    out_c[e, r, c] += w[0] * rows_c[r, c]
+                    out_c[e, r, 3 + c] += w[1] * rows_c[r, c]
+                for c in range(6):
+                    out_k[e, r, 6 + c] += rows_k[r, 3 + c]
+                    out_c[e, r, 6 + c] += rows_c[r, 3 + c]
+        if touched:
+            for r in range(3):
+                out_dofs[e, r] = 6 * i0 + r
+                out_dofs[e, 3 + r] = 6 * i1 + r
+                out_dofs[e, 6 + r] = 6 * box + r
+                out_dofs[e, 9 + r] = 6 * box + 3 + r
+    return n_contact, deepest, worst

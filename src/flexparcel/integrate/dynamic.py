@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from flexparcel.contact.bodies import box_contact_forces
+from flexparcel.contact.bodies import box_contact_forces, edge_box_forces
 from flexparcel.contact.broadphase import point_triangle_candidates
 from flexparcel.contact.edges import edge_plane_forces
 from flexparcel.contact.faces import face_contact_forces, face_sides
@@ -358,6 +358,20 @@ class GeneralizedAlpha:
             )  # fmt: skip
             self._coupled_blocks.append((ek, ec, dofs))
             info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
+        if m.edge_box_sets:
+            half = _box_half_at(m, t)
+        for edges, box, radius, samples, law, sched in m.edge_box_sets:
+            ne = edges.shape[0]
+            ek = np.zeros((ne, 12, 12))
+            ec = np.zeros((ne, 12, 12))
+            dofs = np.zeros((ne, 12), dtype=np.int64)
+            nc, depth, ratio = edge_box_forces(
+                edges, box, radius, samples, m.contact_laws[law], factors[sched], half,
+                m.box_radius_by_node, s.positions, s.rotations, s.velocities, fc, ek, ec, dofs,
+                self._node_mass, self.opt.impact_speed, w2,
+            )  # fmt: skip
+            self._coupled_blocks.append((ek, ec, dofs))
+            info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
         for (nodes, tris, thick, law, sched), (pairs, sides), anchors in zip(
             m.face_sets, self._face_cands, self._face_anchors, strict=True
         ):
@@ -661,7 +675,7 @@ class GeneralizedAlpha:
                 )
                 s1.velocities = v1
                 s1.accelerations = qdd
-                if m.cp_node.size or m.edge_sets or m.face_sets or m.bp_node.size:
+                if m.has_contact:
                     # contact history (stick springs) and contact info of the converged state
                     self._fc_trial = self._contact(s1, t1)[0][:, :3]
                 return s1, qdd, a1, it

@@ -126,6 +126,9 @@ class Model:
     ``beta`` (m,) and ``emap`` (m, 3k, 3k) CSR data slots (see flexparcel.elements.solid)."""
     edge_sets: list = field(default_factory=list)
     """Line-contact sets: (edges (E, 2), plane, radius [m], samples, law index, schedule)."""
+    edge_box_sets: list = field(default_factory=list)
+    """Line contact with rounded boxes: (edges (E, 2), rigid node, radius [m], samples, law
+    index, schedule)."""
     face_sets: list = field(default_factory=list)
     """Node-to-face contact sets: (nodes (N,), triangles (M, 3), thickness [m], law index,
     schedule index) each."""
@@ -159,6 +162,14 @@ class Model:
     @property
     def nnz(self) -> int:
         return int(self.csr_indices.shape[0])
+
+    @property
+    def has_contact(self) -> bool:
+        """Whether any contact (points on planes, node-box, line, node-face) is defined."""
+        return bool(
+            self.cp_node.size or self.bp_node.size or self.edge_sets or self.edge_box_sets
+            or self.face_sets
+        )  # fmt: skip
 
     def initial_state(self) -> State:
         n = self.node_count
@@ -237,6 +248,7 @@ class ModelBuilder:
     _face_contacts: list = field(default_factory=list, repr=False)
     _solids: list = field(default_factory=list, repr=False)
     _edge_contacts: list = field(default_factory=list, repr=False)
+    _edge_body_contacts: list = field(default_factory=list, repr=False)
     _refs: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
@@ -554,17 +566,54 @@ class ModelBuilder:
         """Line contact of the shell edges whose two nodes are both in ``node_ids`` (e.g. the
         glued border of an envelope standing on it) against plane ``plane``; each edge is
         sampled at ``samples`` stations (see :mod:`flexparcel.contact.edges`)."""
-        from flexparcel.contact.law import ContactLaw
-
-        if not isinstance(law, ContactLaw):
-            raise TypeError("add_edge_contact: law must be a ContactLaw")
         if not (isinstance(plane, int | np.integer) and 0 <= plane < len(self._planes)):
             raise ValueError(
                 f"add_edge_contact: unknown plane {plane!r}; planes are 0..{len(self._planes) - 1}"
             )
+        self._edge_contacts.append(
+            self._edge_set(
+                "add_edge_contact", node_ids, int(plane), law, radius, samples, schedule
+            )  # fmt: skip
+        )
+
+    def add_edge_body_contact(
+        self,
+        node_ids,
+        body: int,
+        law,
+        *,
+        radius: float = 0.0,
+        samples: int = 3,
+        schedule: Schedule | None = None,
+    ) -> None:
+        """Line contact of the shell edges whose two nodes are both in ``node_ids`` against the
+        rounded box of rigid body ``body`` (its node id), e.g. a packaging's border against its
+        content's edges; ``samples`` stations per edge (see :mod:`flexparcel.contact.bodies`)."""
+        rigid = {node for node, _, _ in self._rigid}
+        if not (isinstance(body, int | np.integer) and int(body) in rigid):
+            raise ValueError(
+                f"add_edge_body_contact: body {body!r} is not a rigid body's node; rigid "
+                f"bodies: {sorted(rigid)}"
+            )
+        self._edge_body_contacts.append(
+            self._edge_set(
+                "add_edge_body_contact", node_ids, int(body), law, radius, samples, schedule
+            )  # fmt: skip
+        )
+
+    def _edge_set(self, name, node_ids, target, law, radius, samples, schedule) -> tuple:
+        """(edges (E, 2), target, radius, samples, law, schedule) of a line-contact set, with
+        its input checked."""
+        from flexparcel.contact.law import ContactLaw
+
+        if not isinstance(law, ContactLaw):
+            raise TypeError(f"{name}: law must be a ContactLaw")
+        r = float(radius)
+        if not (np.isfinite(r) and r >= 0.0):
+            raise ValueError(f"{name}: radius must be >= 0 m, got {radius!r}")
         if int(samples) != samples or samples < 1:
-            raise ValueError(f"add_edge_contact: samples must be an integer >= 1, got {samples!r}")
-        nodes = set(self._check_ids("add_edge_contact", node_ids).tolist())
+            raise ValueError(f"{name}: samples must be an integer >= 1, got {samples!r}")
+        nodes = set(self._check_ids(name, node_ids).tolist())
         edges = set()
         for lst in self._cells.values():
             for c in lst:
@@ -574,18 +623,9 @@ class ModelBuilder:
                         if u in nodes and v in nodes:
                             edges.add((min(u, v), max(u, v)))
         if not edges:
-            raise ValueError("add_edge_contact: node_ids contain no shell edge")
+            raise ValueError(f"{name}: node_ids contain no shell edge")
         sched = schedule if schedule is not None else Schedule.constant()
-        self._edge_contacts.append(
-            (
-                np.array(sorted(edges), dtype=np.int64),
-                int(plane),
-                float(radius),
-                int(samples),
-                law,
-                sched,
-            )
-        )
+        return (np.array(sorted(edges), dtype=np.int64), target, r, int(samples), law, sched)
 
     def add_self_contact(
         self, node_ids, law, *, thickness: float, schedule: Schedule | None = None
@@ -805,11 +845,14 @@ class ModelBuilder:
             bpl.append(np.full(len(nodes), laws.index(law)))
             bps.append(np.full(len(nodes), csched.index(sched)))
         edge_sets = []
-        for edges, plane, radius, samples, law, sched in self._edge_contacts:
-            for lst, item in ((laws, law), (csched, sched)):
-                if item not in lst:
-                    lst.append(item)
-            edge_sets.append((edges, plane, radius, samples, laws.index(law), csched.index(sched)))
+        edge_box_sets = []
+        for out, given in ((edge_sets, self._edge_contacts),
+                           (edge_box_sets, self._edge_body_contacts)):  # fmt: skip
+            for edges, target, radius, samples, law, sched in given:
+                for lst, item in ((laws, law), (csched, sched)):
+                    if item not in lst:
+                        lst.append(item)
+                out.append((edges, target, radius, samples, laws.index(law), csched.index(sched)))
         face_sets = []
         for nodes, tris, h, law, sched in self._face_contacts:
             for lst, item in ((laws, law), (csched, sched)):
@@ -887,6 +930,7 @@ class ModelBuilder:
             box_radius_by_node=box_rad,
             face_sets=face_sets,
             edge_sets=edge_sets,
+            edge_box_sets=edge_box_sets,
             solid_groups=solid_groups,
             slave_nodes=slave_nodes,
             slave_master=slave_master,
