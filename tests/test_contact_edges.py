@@ -95,3 +95,54 @@ def test_line_contact_holds_a_coarse_sheet_on_a_box_between_its_nodes():
     assert np.abs(r.velocities[-1, ids, :3]).max() < 1e-3
     _, r0, _, _ = _sheet_over_ridge(False)
     assert r0.positions[-1, ids, 2].max() < 0.05 - 0.01  # fell past the ridge top
+
+
+def _strip_across_strip(line_contact: bool):
+    """A 20 x 100 mm strip of ONE quad (nodes at y = +-50 mm) dropped 1 mm across a clamped
+    100 x 50 mm strip of one quad (y = +-25 mm): no node of the upper strip lies over the lower
+    one; the stations of its two long edges (5 each, y = -40 ... 40 mm) at y = -20, 0, 20 mm do."""
+    t, rho = 0.3e-3, 2424.0
+    mat = fp.ShellMaterial(926e6, 0.1, rho, t, 1.71e-3)
+    b = fp.ModelBuilder()
+    p1, q1 = fp.mesh.rectangle(0.1, 0.05, 1, 1, origin=(-0.05, -0.025, 0.0))
+    low = b.add_shell_mesh(p1, q1, material=mat)
+    b.clamp(low)
+    p2, q2 = fp.mesh.rectangle(0.02, 0.1, 1, 1, origin=(-0.01, -0.05, t + 1e-3))
+    up = b.add_shell_mesh(p2, q2, material=mat)
+    law = ContactLaw(
+        stiffness=1e4, damping=2.0, damping_option="indentation", indentation_exponent=0.0
+    )
+    b.add_face_contact(up, low, law, thickness=t)
+    if line_contact:
+        b.add_edge_face_contact(up, low, law, thickness=t, samples=5)
+    model = b.finalize()
+    r = fp.simulate(model, 0.15, dt_out=0.005, options=fp.IntegratorOptions(tol_displacement=1e-7))
+    return model, r, up, t
+
+
+def test_line_contact_holds_a_coarse_strip_across_another_between_its_nodes():
+    # As on the box ridge: node-to-face contact alone lets the upper strip fall past the lower
+    # one; with edge-to-face line contact the 6 stations over it carry the weight W and it
+    # rests one contact thickness t above it, sunk by W / (6 c/5); 1 %.
+    model, r, up, t = _strip_across_strip(True)
+    z = r.positions[-1, up, 2]
+    sink = model.mass[up, 0].sum() * 9.81 / (6 * 1e4 / 5)
+    assert t - z == pytest.approx(np.full(4, sink), rel=0.01)
+    assert np.abs(r.velocities[-1, up, :3]).max() < 1e-3
+    _, r0, _, _ = _strip_across_strip(False)
+    assert r0.positions[-1, up, 2].max() < -0.01
+
+
+def test_edge_face_contact_bad_input():
+    b = fp.ModelBuilder()
+    pts, quads = fp.mesh.rectangle(0.1, 0.1, 2, 2)
+    ids = b.add_shell_mesh(pts, quads, material=fp.ShellMaterial(1e9, 0.3, 1000.0, 1e-3))
+    law = ContactLaw(stiffness=1e4)
+    with pytest.raises(ValueError, match=r"add_edge_face_contact: thickness must be > 0 m"):
+        b.add_edge_face_contact(ids, ids, law, thickness=0.0)
+    with pytest.raises(ValueError, match=r"add_edge_face_contact: node_ids contain no shell"):
+        b.add_edge_face_contact(ids[[0, 8]], ids, law, thickness=1e-3)
+    with pytest.raises(ValueError, match=r"add_edge_face_contact: face_node_ids contain no"):
+        b.add_edge_face_contact(ids, ids[:2], law, thickness=1e-3)
+    with pytest.raises(ValueError, match=r"samples must be an integer >= 1"):
+        b.add_edge_face_contact(ids, ids, law, thickness=1e-3, samples=0)

@@ -11,7 +11,11 @@ block is compared here, column by column, with the central difference
   spatial, ``R <- exp(W(dtheta)) R``, as :func:`flexparcel.elements.rotations.apply_spins`
   applies the Newton increment, and the angular velocity is the world-frame ``w_b``);
 * :func:`face_contact_forces` (12 x 12: the node and the triangle's three vertices);
-* :func:`edge_plane_forces` (6 x 6: the two nodes of a shell edge, 3 sampled points).
+* :func:`edge_plane_forces` (6 x 6: the two nodes of a shell edge, 3 sampled points);
+* :func:`edge_box_forces` (12 x 12: an edge's two nodes, box translation and spin) and
+  :func:`edge_face_forces` (15 x 15: an edge's two nodes and a triangle's three vertices);
+* the stick model of the box and face kernels (stick, slip at mu_d, slip in the STEP5 blend, a
+  new contact anchored at the step's start).
 
 States: in contact in the spring + STEP-damping branch, in the rebound branch
 ``F_N = R_df F_NC``, sliding (``|vt| > v_d``, ``mu = mu_d``), in the STEP5 friction blend
@@ -45,7 +49,7 @@ import pytest
 from flexparcel.consignments.build import default_packaging_content_law
 from flexparcel.contact.bodies import box_contact_forces, edge_box_forces
 from flexparcel.contact.edges import edge_plane_forces
-from flexparcel.contact.faces import face_contact_forces
+from flexparcel.contact.faces import edge_face_forces, face_contact_forces
 from flexparcel.contact.geometry import (
     BOX_CORNER,
     BOX_EDGE,
@@ -712,3 +716,70 @@ def edge_box_errors(case):
 @pytest.mark.parametrize("case", list(EDGE_BOX_CASES))
 def test_edge_box_tangents_match_finite_differences(case):
     edge_box_errors(case)
+
+
+# --------------------------------------------------------------------------------------------------
+# shell edge against a shell / solid triangle (line contact, edge_face_forces)
+# --------------------------------------------------------------------------------------------------
+
+
+def _edge_face_run(law, pos, vel, side):
+    """Forces on [i, j, a, b, c] (15,) and blocks (15, 15): edge (nodes 0, 1), 3 stations,
+    against the triangle (nodes 2, 3, 4)."""
+    f = np.zeros((5, 6))
+    ek = np.zeros((3, 15, 15))
+    ec = np.zeros((3, 15, 15))
+    dofs = np.zeros((3, 15), dtype=np.int64)
+    pairs = np.array([[0, 0], [1, 0], [2, 0]])
+    nc = edge_face_forces(
+        pairs, np.full(3, float(side)), np.array([[0, 1]]), SAMPLES, np.array([[2, 3, 4]]),
+        THICK, law.packed(), ACT, pos, vel, f, ek, ec, dofs, np.ones(5), 1e9, np.zeros(1),
+    )[0]  # fmt: skip
+    live = dofs[:, 0] >= 0
+    assert nc == live.sum()
+    for d in dofs[live]:
+        assert list(d) == [0, 1, 2, 6, 7, 8, 12, 13, 14, 18, 19, 20, 24, 25, 26]
+    return f[:, :3].ravel(), ek[live].sum(axis=0), ec[live].sum(axis=0), nc
+
+
+EDGE_FACE_CASES = {
+    # name: (law, penetrations at the edge's ends, side, slips at the ends [m/s], stations
+    #        in contact)
+    "above-sliding": (CONTENT, (S, 0.6 * S), 1, ((0.02, 0.0, 0.0), (0.015, 0.01, 0.0)), 3),
+    "below-partly-in-contact": (
+        CONTENT, (2.0 * S, -S), -1, ((0.02, 0.0, 0.0), (0.02, 0.0, 0.0)), 2,
+    ),
+    "above-friction-blend": (
+        BLEND, (S, 0.6 * S), 1, ((1.2e-3, 0.0, 0.0), (1.2e-3, 0.0, 0.0)), 3,
+    ),
+}  # fmt: skip
+
+
+def edge_face_errors(case):
+    """(error of the position block, of the velocity block) relative to the blocks' maxima."""
+    law, pens, side, slips, contacts = EDGE_FACE_CASES[case]
+    centre = TRI.mean(axis=0)
+    ends = [centre + 0.25 * (TRI[0] - centre), centre + 0.25 * (TRI[1] - centre)]
+    pos = np.vstack(
+        [e + side * (THICK - s) * _N_T for e, s in zip(ends, pens, strict=True)] + [TRI]
+    )
+    vel = np.zeros((5, 6))
+    stretch = np.diag([0.5, -0.3, 0.2])
+    vel[2:, :3] = (
+        np.array([0.03, -0.01, 0.01])
+        + np.cross(np.array([0.5, -0.3, 2.0]), TRI - centre)
+        + (TRI - centre) @ stretch.T
+    )
+    for k in range(2):
+        _, _, bary, n, _, _ = point_triangle_contact(pos[k], *TRI, THICK, side)
+        slip = np.asarray(slips[k], float)
+        vel[k, :3] = bary @ vel[2:, :3] + slip - (slip @ n) * n - 0.05 * n
+    _, ek, ec, nc = _edge_face_run(law, pos, vel, side)
+    assert nc == contacts
+    dk, dc = _central_differences(lambda p, v: _edge_face_run(law, p, v, side)[0], pos, vel)
+    return _compare(ek, dk, RTOL), _compare(ec, dc, RTOL)
+
+
+@pytest.mark.parametrize("case", list(EDGE_FACE_CASES))
+def test_edge_face_tangents_match_finite_differences(case):
+    edge_face_errors(case)

@@ -373,8 +373,9 @@ def point_triangle_candidates(
         tris: triangles as node ids into ``pos``, (M, 3).
         pos: node positions [m], (n, 3).
         margin: extra reach [m] >= 0 (contact thickness + expected motion).
-        point_node: node id of each point (N,), or None; a point is never paired with a
-            triangle that has its node as a vertex (self contact). ``-1`` for "no node".
+        point_node: node id of each point (N,), or node ids (N, k) (e.g. an edge station's two
+            nodes), or None; a point is never paired with a triangle that has one of its nodes
+            as a vertex (self contact). ``-1`` for "no node".
         cell_size: grid cell size [m]; 0 for automatic.
 
     Returns:
@@ -387,9 +388,10 @@ def point_triangle_candidates(
     if point_node is None:
         qn = np.full((pts.shape[0], 1), -1, np.int64)
     else:
-        qn = np.ascontiguousarray(point_node, dtype=np.int64).reshape(-1, 1)
-        if qn.shape[0] != pts.shape[0]:
-            raise ValueError(f"point_node must have shape ({pts.shape[0]},)")
+        qn = np.ascontiguousarray(point_node, dtype=np.int64)
+        qn = qn.reshape(-1, 1) if qn.ndim == 1 else qn
+        if qn.ndim != 2 or qn.shape[0] != pts.shape[0]:
+            raise ValueError(f"point_node must have shape ({pts.shape[0]},) or ({pts.shape[0]}, k)")
     lo, hi = triangle_bounds(t, p)
     return grid_pairs(pts, r, qn, lo, hi, t, _as_margin(margin), float(cell_size))
 

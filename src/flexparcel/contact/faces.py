@@ -42,16 +42,17 @@ from flexparcel.contact.law import (
     normal_force_packed,
 )
 
-__all__ = ["face_sides", "face_contact_forces"]
+__all__ = ["face_sides", "face_contact_forces", "edge_stations", "edge_face_forces"]
 
 
 @nb.njit(cache=True)
-def face_sides(pairs, nodes, tris, pos):
-    """Side (+1/-1) of each candidate's node relative to its face, shape (K,)."""
+def face_sides(pairs, points, tris, pos):
+    """Side (+1/-1) of each candidate's point (``points`` (N, 3) [m]) relative to its face,
+    shape (K,)."""
     out = np.empty(pairs.shape[0])
     for k in range(pairs.shape[0]):
         t = tris[pairs[k, 1]]
-        d = point_triangle(pos[nodes[pairs[k, 0]]], pos[t[0]], pos[t[1]], pos[t[2]])[0]
+        d = point_triangle(points[pairs[k, 0]], pos[t[0]], pos[t[1]], pos[t[2]])[0]
         out[k] = 1.0 if d >= 0.0 else -1.0
     return out
 
@@ -74,6 +75,102 @@ def plane_barycentric(x, a, b, c):
     out[2] = (d11 * r2 - d12 * r1) / det
     out[0] = 1.0 - out[1] - out[2]
     return out
+
+
+@nb.njit(cache=True)
+def _point_face_pair(p, vp, tx, tv, thickness, side, law, scale, stick, m, c0):
+    """One contact point (position ``p``, velocity ``vp``) against a triangle with vertex
+    positions ``tx`` (3, 3) and velocities ``tv`` (3, 3); the law's force scaled by ``scale``.
+    ``stick``: stick model with the anchor at ``c0 + sum_v m_v x_v`` (``m`` (3,) weights,
+    ``c0`` (3,) [m]).
+
+    Returns (s, force f (3,) on the point (-bary_v f on vertex v), barycentric weights bary
+    (3,) of the closest point, blocks (12, 12) of d[f_p, f_a, f_b, f_c] /
+    d[p, x_a, x_b, x_c] and / d[v_p, v_a, v_b, v_c], new elastic displacement (3,), dF_N/ds,
+    normal velocity n . v_rel); s <= 0: no contact (the other outputs are zeros).
+    """
+    bk = np.zeros((12, 12))
+    bc = np.zeros((12, 12))
+    f = np.zeros(3)
+    u_new = np.zeros(3)
+    s, _, bary, n, _, _, ds, dn, dbary = point_triangle_contact_derivs(
+        p, tx[0], tx[1], tx[2], thickness, side
+    )
+    if s <= 0.0:
+        return s, f, bary, bk, bc, u_new, 0.0, 0.0
+    vrel = vp - bary[0] * tv[0] - bary[1] * tv[1] - bary[2] * tv[2]
+    vn = n[0] * vrel[0] + n[1] * vrel[1] + n[2] * vrel[2]
+    vt = vrel - vn * n
+    fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
+    dft_da = np.zeros((3, 3))
+    e = np.zeros(3)
+    en = 0.0
+    if stick:
+        e = p - c0 - m[0] * tx[0] - m[1] * tx[1] - m[2] * tx[2]
+        en = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
+        ft, u_new, dft_da, dft_dvt, dft_dfn = anchored_friction(e - en * n, vt, fn, law)
+    else:
+        ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+    f = scale * (fn * n + ft)
+    w = np.empty(4)
+    w[0] = 1.0
+    w[1:] = -bary
+    g = n + dft_dfn
+    # s' = -n . vrel and vt = vrel - (n . vrel) n change with the configuration through n
+    # and through the barycentric weights of the face velocities in vrel
+    dvrel_x = np.zeros((3, 12))
+    for a in range(3):
+        for i in range(3):
+            for j in range(12):
+                dvrel_x[i, j] -= tv[a, i] * dbary[a, j]
+    vdn = vrel @ dn
+    dsd_x = -(vdn + n @ dvrel_x)
+    proj = np.eye(3) - np.outer(n, n)
+    dvt_x = proj @ dvrel_x - np.outer(n, vdn) - vn * dn
+    dfx = scale * (np.outer(g, dfn_ds * ds + dfn_dsd * dsd_x) + fn * dn + dft_dvt @ dvt_x)
+    if stick:
+        # a = P e: da = P de - n (e . dn) - (n . e) dn, de/d[p, x_a, x_b, x_c] =
+        # [I, -m_a I, -m_b I, -m_c I]
+        de = np.zeros((3, 12))
+        for i in range(3):
+            de[i, i] = 1.0
+            for v in range(3):
+                de[i, 3 + 3 * v + i] = -m[v]
+        dfx += scale * (dft_da @ (proj @ de - np.outer(n, e @ dn) - en * dn))
+    dvrel = np.zeros((3, 12))
+    for a in range(4):
+        for i in range(3):
+            dvrel[i, 3 * a + i] = w[a]
+    dsd = np.zeros(12)
+    for j in range(12):
+        dsd[j] = -(n[0] * dvrel[0, j] + n[1] * dvrel[1, j] + n[2] * dvrel[2, j])
+    dfv = scale * (np.outer(g, dfn_dsd * dsd) + dft_dvt @ proj @ dvrel)
+    for a in range(4):
+        for i in range(3):
+            for j in range(12):
+                bk[3 * a + i, j] = w[a] * dfx[i, j]
+                bc[3 * a + i, j] = w[a] * dfv[i, j]
+                if a > 0:
+                    bk[3 * a + i, j] -= f[i] * dbary[a - 1, j]
+    return s, f, bary, bk, bc, u_new, dfn_ds, vn
+
+
+@nb.njit(cache=True)
+def _best_candidates(pairs, sides, points, tris, pos, thickness, out_dofs):
+    """Deepest candidate per query point (-1 if none penetrates); clears ``out_dofs``."""
+    best = np.full(points.shape[0], -1)
+    best_s = np.zeros(points.shape[0])
+    for k in range(pairs.shape[0]):
+        for j in range(out_dofs.shape[1]):
+            out_dofs[k, j] = -1
+        q = pairs[k, 0]
+        t = tris[pairs[k, 1]]
+        dist = point_triangle(points[q], pos[t[0]], pos[t[1]], pos[t[2]])[0]
+        s = thickness - sides[k] * dist
+        if s > best_s[q]:
+            best_s[q] = s
+            best[q] = k
+    return best
 
 
 @nb.njit(cache=True)
@@ -107,118 +204,140 @@ def face_contact_forces(
     to ``anchor_new`` / ``has_anchor_new``; ``pos0`` (n, 3) are the step's start positions.
     Returns (contacts, deepest penetration [m], worst penetration / max_penetration)."""
     npts = nodes.shape[0]
-    best = np.full(npts, -1)
-    best_s = np.zeros(npts)
-    for k in range(pairs.shape[0]):
-        for j in range(12):
-            out_dofs[k, j] = -1
-        q = pairs[k, 0]
-        t = tris[pairs[k, 1]]
-        p = pos[nodes[q]]
-        dist = point_triangle(p, pos[t[0]], pos[t[1]], pos[t[2]])[0]
-        s = thickness - sides[k] * dist
-        if s > best_s[q]:
-            best_s[q] = s
-            best[q] = k
+    points = np.empty((npts, 3))
+    for q in range(npts):
+        points[q] = pos[nodes[q]]
+        has_anchor_new[q] = 0.0
+    best = _best_candidates(pairs, sides, points, tris, pos, thickness, out_dofs)
     n_contact = 0
     deepest = 0.0
     worst = 0.0
-    for q in range(npts):
-        has_anchor_new[q] = 0.0
     if act == 0.0:
         return 0, 0.0, 0.0
+    stick = law[P_K_T] > 0.0
+    tx = np.empty((3, 3))
+    tv = np.empty((3, 3))
+    c0 = np.zeros(3)
+    m = np.zeros(3)
     for q in range(npts):
         k = best[q]
         if k < 0:
             continue
         t = tris[pairs[k, 1]]
         node = nodes[q]
-        s, _, bary, n, _, _, ds, dn, dbary = point_triangle_contact_derivs(
-            pos[node], pos[t[0]], pos[t[1]], pos[t[2]], thickness, int(sides[k])
+        for v in range(3):
+            tx[v] = pos[t[v]]
+            tv[v] = vel[t[v], :3]
+        if stick:
+            # anchor weights on this triangle from the step's start (constant in the step);
+            # the anchor moves with the face by the weighted motion of its vertices and keeps
+            # its offset off the face's plane, so a new contact starts without a spring
+            a0 = anchor[q] if has_anchor[q] != 0.0 else pos0[node]
+            m = plane_barycentric(a0, pos0[t[0]], pos0[t[1]], pos0[t[2]])
+            c0 = a0 - m[0] * pos0[t[0]] - m[1] * pos0[t[1]] - m[2] * pos0[t[2]]
+        s, f, bary, bk, bc, u_new, dfn_ds, vn = _point_face_pair(
+            pos[node], vel[node, :3], tx, tv, thickness, int(sides[k]), law, act, stick, m, c0
         )
         if s <= 0.0:
             continue
         n_contact += 1
         deepest = max(deepest, s)
         worst = max(worst, s / law[P_MAX_PEN])
-        vrel = (
-            vel[node, :3]
-            - bary[0] * vel[t[0], :3]
-            - bary[1] * vel[t[1], :3]
-            - bary[2] * vel[t[2], :3]
-        )
-        vn = n[0] * vrel[0] + n[1] * vrel[1] + n[2] * vrel[2]
-        vt = vrel - vn * n
-        fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
         if abs(vn) > v_impact and mass[node] > 0.0:
             out_w2[0] = max(out_w2[0], act * dfn_ds / mass[node])
-        stick = law[P_K_T] > 0.0
-        dft_da = np.zeros((3, 3))
-        e = np.zeros(3)
-        en = 0.0
-        m = np.zeros(3)
         if stick:
-            # anchor weights on this triangle from the step's start (constant in the step)
-            a0 = anchor[q] if has_anchor[q] != 0.0 else pos0[node]
-            m = plane_barycentric(a0, pos0[t[0]], pos0[t[1]], pos0[t[2]])
-            # the anchor moves with the face by the weighted motion of its vertices; its offset
-            # off the face's plane is kept, so a new contact starts without a spring
-            e = pos[node] - a0
-            for v in range(3):
-                e -= m[v] * (pos[t[v]] - pos0[t[v]])
-            en = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
-            ft, u_new, dft_da, dft_dvt, dft_dfn = anchored_friction(e - en * n, vt, fn, law)
             anchor_new[q] = pos[node] - u_new
             has_anchor_new[q] = 1.0
-        else:
-            ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
-        f = act * (fn * n + ft)
-        w = np.empty(4)
-        w[0] = 1.0
-        w[1:] = -bary
-        ids = np.empty(4, np.int64)
-        ids[0] = node
-        ids[1:] = t
-        for a in range(4):
-            for i in range(3):
-                out_f[ids[a], i] += w[a] * f[i]
-                out_dofs[k, 3 * a + i] = 6 * ids[a] + i
-        g = n + dft_dfn
-        # s' = -n . vrel and vt = vrel - (n . vrel) n change with the configuration through n
-        # and through the barycentric weights of the face velocities in vrel
-        dvrel_x = np.zeros((3, 12))
-        for a in range(3):
-            va = vel[t[a], :3]
-            for i in range(3):
-                for j in range(12):
-                    dvrel_x[i, j] -= va[i] * dbary[a, j]
-        vdn = vrel @ dn
-        dsd_x = -(vdn + n @ dvrel_x)
-        proj = np.eye(3) - np.outer(n, n)
-        dvt_x = proj @ dvrel_x - np.outer(n, vdn) - vn * dn
-        dfx = act * (np.outer(g, dfn_ds * ds + dfn_dsd * dsd_x) + fn * dn + dft_dvt @ dvt_x)
-        if stick:
-            # a = P e: da = P de - n (e . dn) - (n . e) dn, de/d[x_node, x_a, x_b, x_c] =
-            # [I, -m_a I, -m_b I, -m_c I]
-            de = np.zeros((3, 12))
-            for i in range(3):
-                de[i, i] = 1.0
-                for v in range(3):
-                    de[i, 3 + 3 * v + i] = -m[v]
-            dfx += act * (dft_da @ (proj @ de - np.outer(n, e @ dn) - en * dn))
-        dvrel = np.zeros((3, 12))
-        for a in range(4):
-            for i in range(3):
-                dvrel[i, 3 * a + i] = w[a]
-        dsd = np.zeros(12)
-        for j in range(12):
-            dsd[j] = -(n[0] * dvrel[0, j] + n[1] * dvrel[1, j] + n[2] * dvrel[2, j])
-        dfv = act * (np.outer(g, dfn_dsd * dsd) + dft_dvt @ proj @ dvrel)
-        for a in range(4):
-            for i in range(3):
-                for j in range(12):
-                    out_k[k, 3 * a + i, j] = w[a] * dfx[i, j]
-                    out_c[k, 3 * a + i, j] = w[a] * dfv[i, j]
-                    if a > 0:
-                        out_k[k, 3 * a + i, j] -= f[i] * dbary[a - 1, j]
+        for i in range(3):
+            out_f[node, i] += f[i]
+            out_dofs[k, i] = 6 * node + i
+            for v in range(3):
+                out_f[t[v], i] -= bary[v] * f[i]
+                out_dofs[k, 3 + 3 * v + i] = 6 * t[v] + i
+        out_k[k] = bk
+        out_c[k] = bc
+    return n_contact, deepest, worst
+
+
+@nb.njit(cache=True)
+def edge_stations(edges, samples, pos):
+    """Stations of shell edges (E, 2): positions (E * samples, 3) [m] at
+    ``(1 - xi) x_i + xi x_j``, xi = (m + 1/2) / samples, and their two nodes (E * samples, 2)."""
+    ne = edges.shape[0]
+    pts = np.empty((ne * samples, 3))
+    owners = np.empty((ne * samples, 2), np.int64)
+    for e in range(ne):
+        for st in range(samples):
+            xi = (st + 0.5) / samples
+            q = e * samples + st
+            pts[q] = (1.0 - xi) * pos[edges[e, 0]] + xi * pos[edges[e, 1]]
+            owners[q, 0] = edges[e, 0]
+            owners[q, 1] = edges[e, 1]
+    return pts, owners
+
+
+@nb.njit(cache=True)
+def edge_face_forces(
+    pairs, sides, edges, samples, tris, thickness, law, act, pos, vel, out_f, out_k, out_c,
+    out_dofs, mass, v_impact, out_w2,
+):  # fmt: skip
+    """Line contact of shell edges (E, 2) against the triangles of one contact set.
+
+    ``pairs`` (K, 2): candidate [station, triangle] (station ``e * samples + m`` of edge e, see
+    :func:`edge_stations`), ``sides`` (K,) the side each station started on. Each station is a
+    contact point with the law scaled by 1/samples (regularised friction), against its deepest
+    candidate; its force f goes to the edge's nodes as ``(1 - xi) f``, ``xi f`` and to the
+    triangle as ``-l_v f``. Blocks (K, 15, 15) of d[f_i, f_j, f_a, f_b, f_c] / d[x_i, x_j, x_a,
+    x_b, x_c] (``out_k``) and / d[v...] (``out_c``), DOF numbers (K, 15) (-1 if unused).
+    Returns (stations in contact, deepest penetration [m], worst penetration / max)."""
+    stations, _ = edge_stations(edges, samples, pos)
+    best = _best_candidates(pairs, sides, stations, tris, pos, thickness, out_dofs)
+    if act == 0.0:
+        return 0, 0.0, 0.0
+    n_contact = 0
+    deepest = 0.0
+    worst = 0.0
+    scale = act / samples
+    tx = np.empty((3, 3))
+    tv = np.empty((3, 3))
+    zero = np.zeros(3)
+    tmap = np.zeros((12, 15))  # [p, x_a, x_b, x_c] from [x_i, x_j, x_a, x_b, x_c]
+    for i in range(9):
+        tmap[3 + i, 6 + i] = 1.0
+    for q in range(stations.shape[0]):
+        k = best[q]
+        if k < 0:
+            continue
+        e = q // samples
+        xi = (q % samples + 0.5) / samples
+        i0, i1 = edges[e, 0], edges[e, 1]
+        t = tris[pairs[k, 1]]
+        for v in range(3):
+            tx[v] = pos[t[v]]
+            tv[v] = vel[t[v], :3]
+        vp = (1.0 - xi) * vel[i0, :3] + xi * vel[i1, :3]
+        s, f, bary, bk, bc, _, dfn_ds, vn = _point_face_pair(
+            stations[q], vp, tx, tv, thickness, int(sides[k]), law, scale, False, zero, zero
+        )
+        if s <= 0.0:
+            continue
+        n_contact += 1
+        deepest = max(deepest, s)
+        worst = max(worst, s / law[P_MAX_PEN])
+        mw = (1.0 - xi) * mass[i0] + xi * mass[i1]
+        if abs(vn) > v_impact and mw > 0.0:
+            out_w2[0] = max(out_w2[0], scale * dfn_ds / mw)
+        for i in range(3):
+            tmap[i, i] = 1.0 - xi
+            tmap[i, 3 + i] = xi
+            out_f[i0, i] += (1.0 - xi) * f[i]
+            out_f[i1, i] += xi * f[i]
+            out_dofs[k, i] = 6 * i0 + i
+            out_dofs[k, 3 + i] = 6 * i1 + i
+            for v in range(3):
+                out_f[t[v], i] -= bary[v] * f[i]
+                out_dofs[k, 6 + 3 * v + i] = 6 * t[v] + i
+        # the station's force rows and position columns both split over the edge's nodes
+        out_k[k] = tmap.T @ bk @ tmap
+        out_c[k] = tmap.T @ bc @ tmap
     return n_contact, deepest, worst

@@ -39,7 +39,12 @@ import scipy.sparse.linalg as spla
 from flexparcel.contact.bodies import box_contact_forces, edge_box_forces
 from flexparcel.contact.broadphase import point_triangle_candidates
 from flexparcel.contact.edges import edge_plane_forces
-from flexparcel.contact.faces import face_contact_forces, face_sides
+from flexparcel.contact.faces import (
+    edge_face_forces,
+    edge_stations,
+    face_contact_forces,
+    face_sides,
+)
 from flexparcel.contact.planes import plane_contact_forces
 from flexparcel.elements.rotations import (
     apply_spins,
@@ -221,8 +226,9 @@ class GeneralizedAlpha:
         self._contact_info = (0, 0.0, -1, 0.0)
         self._coupled_blocks = []
         self._face_cands = []
+        self._edge_face_cands = []
         # node pairs that share a shell element (keys a * n + b), for the self-contact filter
-        if model.face_sets and model.triangles.size:
+        if (model.face_sets or model.edge_face_sets) and model.triangles.size:
             t = model.triangles
             a = np.concatenate([t[:, 0], t[:, 1], t[:, 2], t[:, 1], t[:, 2], t[:, 0]])
             b = np.concatenate([t[:, 1], t[:, 2], t[:, 0], t[:, 0], t[:, 1], t[:, 2]])
@@ -386,6 +392,20 @@ class GeneralizedAlpha:
             )  # fmt: skip
             self._coupled_blocks.append((fk, fcv, dofs))
             info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
+        for (edges, tris, thick, samples, law, sched), (pairs, sides) in zip(
+            m.edge_face_sets, self._edge_face_cands, strict=True
+        ):
+            k = pairs.shape[0]
+            ek = np.zeros((k, 15, 15))
+            ec = np.zeros((k, 15, 15))
+            dofs = np.zeros((k, 15), dtype=np.int64)
+            nc, depth, ratio = edge_face_forces(
+                pairs, sides, edges, samples, tris, thick, m.contact_laws[law], factors[sched],
+                s.positions, s.velocities, fc, ek, ec, dofs, self._node_mass,
+                self.opt.impact_speed, w2,
+            )  # fmt: skip
+            self._coupled_blocks.append((ek, ec, dofs))
+            info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
         self._impact_w2 = float(w2[0])
         return fc, dq, dv, info
 
@@ -413,7 +433,8 @@ class GeneralizedAlpha:
         of its face each node starts on."""
         m = self.model
         self._face_cands = []
-        if not m.face_sets:
+        self._edge_face_cands = []
+        if not (m.face_sets or m.edge_face_sets):
             return
         vmax = float(np.sqrt((s0.velocities[:, :3] ** 2).sum(axis=1)).max())
         reach = 2.0 * h * (vmax + 9.81 * h) + 1e-9
@@ -429,8 +450,23 @@ class GeneralizedAlpha:
                 keys = nodes[pairs[:, 0], None] * m.node_count + corner
                 near = np.isin(keys, self._adjacent_keys).any(axis=1)
                 pairs = pairs[~near]
-            sides = face_sides(pairs, nodes, tris, s0.positions)
+            sides = face_sides(pairs, s0.positions[nodes], tris, s0.positions)
             self._face_cands.append((pairs, sides))
+        for edges, tris, thick, samples, _, _ in m.edge_face_sets:
+            points, owners = edge_stations(edges, samples, s0.positions)
+            pairs = point_triangle_candidates(
+                points, thick, tris, s0.positions, thick + reach, point_node=owners
+            )
+            if pairs.size and self._adjacent_keys.size:
+                # as for nodes: a station never touches a face next to either of its nodes
+                corner = tris[pairs[:, 1]]
+                near = np.zeros(len(pairs), dtype=bool)
+                for a in range(2):
+                    keys = owners[pairs[:, 0], a, None] * m.node_count + corner
+                    near |= np.isin(keys, self._adjacent_keys).any(axis=1)
+                pairs = pairs[~near]
+            sides = face_sides(pairs, points, tris, s0.positions)
+            self._edge_face_cands.append((pairs, sides))
 
     def _add_contact_tangent(self, data, cdq, cdv, cv):
         """Residual r = ... - f_contact: add -(dF/dq + cv dF/dv) into each node's block."""

@@ -126,6 +126,9 @@ class Model:
     ``beta`` (m,) and ``emap`` (m, 3k, 3k) CSR data slots (see flexparcel.elements.solid)."""
     edge_sets: list = field(default_factory=list)
     """Line-contact sets: (edges (E, 2), plane, radius [m], samples, law index, schedule)."""
+    edge_face_sets: list = field(default_factory=list)
+    """Line contact with faces: (edges (E, 2), triangles (M, 3), thickness [m], samples, law
+    index, schedule)."""
     edge_box_sets: list = field(default_factory=list)
     """Line contact with rounded boxes: (edges (E, 2), rigid node, radius [m], samples, law
     index, schedule)."""
@@ -168,7 +171,7 @@ class Model:
         """Whether any contact (points on planes, node-box, line, node-face) is defined."""
         return bool(
             self.cp_node.size or self.bp_node.size or self.edge_sets or self.edge_box_sets
-            or self.face_sets
+            or self.face_sets or self.edge_face_sets
         )  # fmt: skip
 
     def initial_state(self) -> State:
@@ -249,6 +252,7 @@ class ModelBuilder:
     _solids: list = field(default_factory=list, repr=False)
     _edge_contacts: list = field(default_factory=list, repr=False)
     _edge_body_contacts: list = field(default_factory=list, repr=False)
+    _edge_face_contacts: list = field(default_factory=list, repr=False)
     _refs: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
@@ -415,10 +419,7 @@ class ModelBuilder:
         a contact ``radius`` [m] (e.g. half the shell thickness). ``schedule`` switches the
         pair on (1) and off (0) in time.
         """
-        from flexparcel.contact.law import ContactLaw
-
-        if not isinstance(law, ContactLaw):
-            raise TypeError("add_contact: law must be a ContactLaw")
+        _require_law("add_contact", law)
         if not (isinstance(plane, int | np.integer) and 0 <= plane < len(self._planes)):
             raise ValueError(
                 f"add_contact: unknown plane {plane!r}; planes are 0..{len(self._planes) - 1}"
@@ -501,10 +502,7 @@ class ModelBuilder:
     ) -> None:
         """Contact between shell nodes (contact radius [m], e.g. half the shell thickness) and
         the rounded box of rigid body ``body`` (its node id), e.g. packaging on its content."""
-        from flexparcel.contact.law import ContactLaw
-
-        if not isinstance(law, ContactLaw):
-            raise TypeError("add_body_contact: law must be a ContactLaw")
+        _require_law("add_body_contact", law)
         rigid = {node for node, _, _ in self._rigid}
         if not (isinstance(body, int | np.integer) and int(body) in rigid):
             raise ValueError(
@@ -525,15 +523,41 @@ class ModelBuilder:
         lie in ``face_node_ids`` (packaging layer against layer, consignment against
         consignment). ``thickness`` [m]: the contact distance, e.g. the mean of the two shells'
         thicknesses. Both sides of a face are free (thin shells)."""
-        from flexparcel.contact.law import ContactLaw
+        name = "add_face_contact"
+        _require_law(name, law)
+        nodes = self._check_ids(name, node_ids)
+        h = _positive_thickness(name, thickness)
+        tris = self._face_triangles(name, face_node_ids)
+        sched = schedule if schedule is not None else Schedule.constant()
+        self._face_contacts.append((nodes, tris, h, law, sched))
 
-        if not isinstance(law, ContactLaw):
-            raise TypeError("add_face_contact: law must be a ContactLaw")
-        nodes = self._check_ids("add_face_contact", node_ids)
-        faces = set(self._check_ids("add_face_contact", face_node_ids).tolist())
-        h = float(thickness)
-        if not (np.isfinite(h) and h > 0.0):
-            raise ValueError(f"add_face_contact: thickness must be > 0 m, got {thickness!r}")
+    def add_edge_face_contact(
+        self,
+        node_ids,
+        face_node_ids,
+        law,
+        *,
+        thickness: float,
+        samples: int = 3,
+        schedule: Schedule | None = None,
+    ) -> None:
+        """Line contact of the shell edges whose two nodes are both in ``node_ids`` against the
+        shell (or solid boundary) faces whose corners all lie in ``face_node_ids``, e.g. a
+        packaging's border against another consignment; each edge is sampled at ``samples``
+        stations (see :func:`flexparcel.contact.faces.edge_face_forces`). ``thickness`` [m] as
+        for :meth:`add_face_contact`."""
+        name = "add_edge_face_contact"
+        h = _positive_thickness(name, thickness)
+        edges, _, _, samples, law, sched = self._edge_set(
+            name, node_ids, -1, law, 0.0, samples, schedule
+        )
+        tris = self._face_triangles(name, face_node_ids)
+        self._edge_face_contacts.append((edges, tris, h, samples, law, sched))
+
+    def _face_triangles(self, name: str, face_node_ids) -> np.ndarray:
+        """Triangles (M, 3) of the shell faces (quads split once) and solid boundary faces
+        whose corners all lie in ``face_node_ids``."""
+        faces = set(self._check_ids(name, face_node_ids).tolist())
         tris = []
         for ctype, lst in self._cells.items():
             for c in lst:
@@ -547,11 +571,9 @@ class ModelBuilder:
         tris = np.vstack(tris) if tris else np.zeros((0, 3), np.int64)
         if len(tris) == 0:
             raise ValueError(
-                "add_face_contact: face_node_ids contain no complete shell face or solid "
-                "boundary face"
+                f"{name}: face_node_ids contain no complete shell face or solid boundary face"
             )
-        sched = schedule if schedule is not None else Schedule.constant()
-        self._face_contacts.append((nodes, tris.astype(np.int64), h, law, sched))
+        return tris.astype(np.int64)
 
     def add_edge_contact(
         self,
@@ -604,10 +626,7 @@ class ModelBuilder:
     def _edge_set(self, name, node_ids, target, law, radius, samples, schedule) -> tuple:
         """(edges (E, 2), target, radius, samples, law, schedule) of a line-contact set, with
         its input checked."""
-        from flexparcel.contact.law import ContactLaw
-
-        if not isinstance(law, ContactLaw):
-            raise TypeError(f"{name}: law must be a ContactLaw")
+        _require_law(name, law)
         r = float(radius)
         if not (np.isfinite(r) and r >= 0.0):
             raise ValueError(f"{name}: radius must be >= 0 m, got {radius!r}")
@@ -853,6 +872,12 @@ class ModelBuilder:
                     if item not in lst:
                         lst.append(item)
                 out.append((edges, target, radius, samples, laws.index(law), csched.index(sched)))
+        edge_face_sets = []
+        for edges, tris, h, samples, law, sched in self._edge_face_contacts:
+            for lst, item in ((laws, law), (csched, sched)):
+                if item not in lst:
+                    lst.append(item)
+            edge_face_sets.append((edges, tris, h, samples, laws.index(law), csched.index(sched)))
         face_sets = []
         for nodes, tris, h, law, sched in self._face_contacts:
             for lst, item in ((laws, law), (csched, sched)):
@@ -929,6 +954,7 @@ class ModelBuilder:
             box_half_by_node=box_half,
             box_radius_by_node=box_rad,
             face_sets=face_sets,
+            edge_face_sets=edge_face_sets,
             edge_sets=edge_sets,
             edge_box_sets=edge_box_sets,
             solid_groups=solid_groups,
@@ -967,6 +993,20 @@ _SOLID_FACES = {
     5: ([0, 3, 2, 1], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]),
     4: ([0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]),
 }
+
+
+def _require_law(name: str, law) -> None:
+    from flexparcel.contact.law import ContactLaw
+
+    if not isinstance(law, ContactLaw):
+        raise TypeError(f"{name}: law must be a ContactLaw")
+
+
+def _positive_thickness(name: str, thickness) -> float:
+    h = float(thickness)
+    if not (np.isfinite(h) and h > 0.0):
+        raise ValueError(f"{name}: thickness must be > 0 m, got {thickness!r}")
+    return h
 
 
 def _solid_boundary_triangles(solids: list, nodes: set) -> np.ndarray:
