@@ -696,35 +696,11 @@ def stick_friction(
         Stick: dF_T/d(du_t) = -k_t I. Slip: -F_N [mu_k (I - n n^T)/|a| + n (dmu_k/dv)
         du_t^T/(|du_t| dt)] with n = a/|a|.
     """
-    a = u_el_prev + du_t
-    a_norm = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
-    f = np.empty(3)
-    u_new = np.empty(3)
-    dfd = np.zeros((3, 3))
-    dfn = np.zeros(3)
-    if k_t * a_norm <= mu_s * f_n:
-        for i in range(3):
-            f[i] = -k_t * a[i]
-            u_new[i] = a[i]
-            dfd[i, i] = -k_t
-        return f, u_new, False, dfd, dfn
-    # Slip. |a| > 0 here because k_t |a| > mu_s F_N >= 0.
-    du_norm = math.sqrt(du_t[0] * du_t[0] + du_t[1] * du_t[1] + du_t[2] * du_t[2])
-    mu_k, dmu_k = slip_friction_coefficient(du_norm / dt, mu_s, mu_d, v_s, v_d)
-    n = a / a_norm
-    for i in range(3):
-        f[i] = -mu_k * f_n * n[i]
-        u_new[i] = mu_k * f_n * n[i] / k_t
-        dfn[i] = -mu_k * n[i]
-        for j in range(3):
-            proj = (1.0 if i == j else 0.0) - n[i] * n[j]
-            dfd[i, j] = -f_n * mu_k * proj / a_norm
-    # Velocity dependence of mu_k; dmu_k = 0 on the plateau (including du_t = 0).
-    if dmu_k != 0.0 and du_norm > 0.0:
-        for i in range(3):
-            for j in range(3):
-                dfd[i, j] -= f_n * n[i] * dmu_k * du_t[j] / (du_norm * dt)
-    return f, u_new, True, dfd, dfn
+    f, u_new, slipping, dfd, dfv, dfn = _return_map(
+        u_el_prev + du_t, du_t / dt, f_n, k_t, mu_s, mu_d, v_s, v_d
+    )
+    # the slip speed is |du_t| / dt: d/d(du_t) = d/da + d/d(speed vector) / dt
+    return f, u_new, slipping, dfd + dfv / dt, dfn
 
 
 @nb.njit(cache=True)
@@ -765,8 +741,17 @@ def anchored_friction(
         F_T [N] (3,), new elastic displacement [m] (3,) (the anchor moves to point - it),
         dF_T/da [N/m] (3, 3), dF_T/dvt [N s/m] (3, 3), dF_T/dF_N [-] (3,).
     """
-    k_t = p[P_K_T]
-    mu_s = p[P_MU_S]
+    f, u_new, _, dfa, dfv, dfn = _return_map(
+        a, vt, f_n, p[P_K_T], p[P_MU_S], p[P_MU_D], p[P_V_S], p[P_V_D]
+    )
+    return f, u_new, dfa, dfv, dfn
+
+
+@nb.njit(cache=True)
+def _return_map(a, v, f_n, k_t, mu_s, mu_d, v_s, v_d):
+    """The stick model's return map for the trial elastic displacement ``a`` (3,) [m], with
+    ``v`` (3,) [m/s] the slip velocity that sets mu_k while slipping. Returns (F_T, new elastic
+    displacement, slipping, dF_T/da, dF_T/dv, dF_T/dF_N)."""
     a_norm = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
     f = np.empty(3)
     u_new = np.empty(3)
@@ -778,10 +763,10 @@ def anchored_friction(
             f[i] = -k_t * a[i]
             u_new[i] = a[i]
             dfa[i, i] = -k_t
-        return f, u_new, dfa, dfv, dfn
+        return f, u_new, False, dfa, dfv, dfn
     # Slip; |a| > 0 because k_t |a| > mu_s F_N >= 0.
-    speed = math.sqrt(vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2])
-    mu_k, dmu_k = slip_friction_coefficient(speed, mu_s, p[P_MU_D], p[P_V_S], p[P_V_D])
+    speed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    mu_k, dmu_k = slip_friction_coefficient(speed, mu_s, mu_d, v_s, v_d)
     for i in range(3):
         ni = a[i] / a_norm
         f[i] = -mu_k * f_n * ni
@@ -790,6 +775,7 @@ def anchored_friction(
         for j in range(3):
             nj = a[j] / a_norm
             dfa[i, j] = -f_n * mu_k * ((1.0 if i == j else 0.0) - ni * nj) / a_norm
+            # velocity dependence of mu_k; dmu_k = 0 on the plateau (including v = 0)
             if dmu_k != 0.0 and speed > 0.0:
-                dfv[i, j] = -f_n * ni * dmu_k * vt[j] / speed
-    return f, u_new, dfa, dfv, dfn
+                dfv[i, j] = -f_n * ni * dmu_k * v[j] / speed
+    return f, u_new, True, dfa, dfv, dfn

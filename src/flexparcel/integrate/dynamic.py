@@ -179,6 +179,19 @@ def _box_half_at(m: Model, t: float) -> np.ndarray:
     return half
 
 
+def _pair_blocks(count: int, width: int):
+    """Zeroed outputs of a coupled contact kernel: position and velocity blocks (count, width,
+    width) and DOF numbers (count, width)."""
+    return (np.zeros((count, width, width)), np.zeros((count, width, width)),
+            np.zeros((count, width), dtype=np.int64))  # fmt: skip
+
+
+def _merged(info, n_contact, depth, ratio):
+    """Contact info (count, deepest penetration, its point, worst ratio to max penetration)
+    with one more kernel's count, depth and ratio."""
+    return (info[0] + n_contact, max(info[1], depth), info[2], max(info[3], ratio))
+
+
 class _StickAnchors:
     """Stick-model history of coupled contacts (node-box pairs, node-face sets): an anchor
     point (3,) per contact and whether it holds one. The kernels read the committed anchors of
@@ -353,59 +366,47 @@ class GeneralizedAlpha:
             info = (info[0] + binfo[0], max(info[1], binfo[1]),
                     binfo[2] if deeper else info[2], max(info[3], binfo[3]))  # fmt: skip
         for edges, plane, radius, samples, law, sched in m.edge_sets:
-            ne = edges.shape[0]
-            ek = np.zeros((ne, 6, 6))
-            ec = np.zeros((ne, 6, 6))
-            dofs = np.zeros((ne, 6), dtype=np.int64)
+            ek, ec, dofs = _pair_blocks(edges.shape[0], 6)
             nc, depth, ratio = edge_plane_forces(
                 edges, m.plane_point[plane], m.plane_normal[plane], m.plane_velocity[plane],
                 radius, samples, m.contact_laws[law], factors[sched], s.positions,
                 s.velocities, fc, ek, ec, dofs, self._node_mass, self.opt.impact_speed, w2,
             )  # fmt: skip
             self._coupled_blocks.append((ek, ec, dofs))
-            info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
+            info = _merged(info, nc, depth, ratio)
         if m.edge_box_sets:
             half = _box_half_at(m, t)
         for edges, box, radius, samples, law, sched in m.edge_box_sets:
-            ne = edges.shape[0]
-            ek = np.zeros((ne, 12, 12))
-            ec = np.zeros((ne, 12, 12))
-            dofs = np.zeros((ne, 12), dtype=np.int64)
+            ek, ec, dofs = _pair_blocks(edges.shape[0], 12)
             nc, depth, ratio = edge_box_forces(
                 edges, box, radius, samples, m.contact_laws[law], factors[sched], half,
                 m.box_radius_by_node, s.positions, s.rotations, s.velocities, fc, ek, ec, dofs,
                 self._node_mass, self.opt.impact_speed, w2,
             )  # fmt: skip
             self._coupled_blocks.append((ek, ec, dofs))
-            info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
+            info = _merged(info, nc, depth, ratio)
         for (nodes, tris, thick, law, sched), (pairs, sides), anchors in zip(
             m.face_sets, self._face_cands, self._face_anchors, strict=True
         ):
-            k = pairs.shape[0]
-            fk = np.zeros((k, 12, 12))
-            fcv = np.zeros((k, 12, 12))
-            dofs = np.zeros((k, 12), dtype=np.int64)
+            fk, fcv, dofs = _pair_blocks(pairs.shape[0], 12)
             nc, depth, ratio = face_contact_forces(
                 pairs, sides, nodes, tris, thick, m.contact_laws[law], factors[sched],
                 s.positions, s.velocities, fc, fk, fcv, dofs, self._node_mass,
                 self.opt.impact_speed, w2, *anchors.kernel_args(), self._s0.positions,
             )  # fmt: skip
             self._coupled_blocks.append((fk, fcv, dofs))
-            info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
+            info = _merged(info, nc, depth, ratio)
         for (edges, tris, thick, samples, law, sched), (pairs, sides) in zip(
             m.edge_face_sets, self._edge_face_cands, strict=True
         ):
-            k = pairs.shape[0]
-            ek = np.zeros((k, 15, 15))
-            ec = np.zeros((k, 15, 15))
-            dofs = np.zeros((k, 15), dtype=np.int64)
+            ek, ec, dofs = _pair_blocks(pairs.shape[0], 15)
             nc, depth, ratio = edge_face_forces(
                 pairs, sides, edges, samples, tris, thick, m.contact_laws[law], factors[sched],
                 s.positions, s.velocities, fc, ek, ec, dofs, self._node_mass,
                 self.opt.impact_speed, w2,
             )  # fmt: skip
             self._coupled_blocks.append((ek, ec, dofs))
-            info = (info[0] + nc, max(info[1], depth), info[2], max(info[3], ratio))
+            info = _merged(info, nc, depth, ratio)
         self._impact_w2 = float(w2[0])
         return fc, dq, dv, info
 
