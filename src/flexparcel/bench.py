@@ -65,6 +65,7 @@ _FRICTION_MODEL = "stick model, k_t = c (ContactLaw.with_stick_model)"
 
 
 def _envelope_drop(quick: bool = False, progress=None) -> dict:
+    from flexparcel.scenarios.consignment_tests import consignment_options
     from flexparcel.scenarios.envelope_drop import EnvelopeDrop, envelope_drop_model
     from flexparcel.simulate import simulate
 
@@ -85,7 +86,8 @@ def _envelope_drop(quick: bool = False, progress=None) -> dict:
         if t1 <= t0:
             continue
         w0 = time.perf_counter()
-        res = simulate(model, t1, dt_out=(t1 - t0) / 10, state=state, progress=progress)
+        res = simulate(model, t1, dt_out=(t1 - t0) / 10, state=state, progress=progress,
+                       options=consignment_options())  # fmt: skip
         w = time.perf_counter() - w0
         wall += w
         state = res.final_state
@@ -104,6 +106,8 @@ def _envelope_drop(quick: bool = False, progress=None) -> dict:
         "description": "rigid 100 g box (165x125x20 mm) in a 275x200 mm two-layer shell "
         "envelope, 10 mm quads, dropped flat from 200 mm onto a rigid plate",
         "friction_model": _FRICTION_MODEL if case.stick_model else "regularised (paper eq. 8)",
+        "integrator": "rho_inf 0.5, impact limit on rigid bodies, smooth error estimate, Newton "
+        "relaxation (as the consignment tests)",
         "simulated_s": case.t_end,
         "wall_s": wall,
         "dof_count": model.dof_count,

@@ -45,6 +45,7 @@ __all__ = [
     "drop_test",
     "swing_responses",
     "rebound_height",
+    "consignment_options",
 ]
 
 TABLE3_PARAMETERS: dict[str, tuple[str, float]] = {
@@ -160,12 +161,18 @@ def _builder(
     return b, c
 
 
-def _options(options: IntegratorOptions | None) -> IntegratorOptions:
-    # numerical dissipation of the high contact frequencies instead of resolving every node's
-    # contact oscillation (see IntegratorOptions.impact_limit)
-    return options or IntegratorOptions(
+def consignment_options() -> IntegratorOptions:
+    """Integrator options of the consignment tests (and the envelope-drop benchmark): numerical
+    dissipation of the high contact frequencies (rho_inf = 0.5) instead of resolving every
+    node's contact oscillation (see IntegratorOptions.impact_limit), the smooth error estimate
+    and Newton relaxation for contacts cycling across a kink."""
+    return IntegratorOptions(
         rho_inf=0.5, impact_limit="rigid", error_estimate="smooth", newton_relaxation=True
     )
+
+
+def _options(options: IntegratorOptions | None) -> IntegratorOptions:
+    return options or consignment_options()
 
 
 def _run(model, s0, t_end, dt_out, options, progress) -> tuple[SimulationResult, float]:
