@@ -232,6 +232,8 @@ def test_tight_envelopes_get_a_grown_content(name, scale):
 def test_content_scale_out_of_range_is_refused():
     with pytest.raises(ValueError, match=r"content_scale must be in \[0.3, 1\]"):
         AssemblySettings(content_scale=0.2)
+    with pytest.raises(ValueError, match=r"stick_model must be true or false"):
+        AssemblySettings(stick_model=1)
 
 
 def test_assembly_grows_a_shrunk_content_back_without_penetration():
