@@ -57,26 +57,38 @@ def test_edge_contact_bad_input():
         b.add_edge_body_contact(ids, box, "law")
 
 
+T_SHEET, RHO_SHEET = 0.3e-3, 2424.0
+C_LINE = 1e4  # contact stiffness [N/m] of the line-contact scenes
+# linear spring with constant damping (near-critical for the stations of a ~1.5 g sheet)
+LINE_LAW = ContactLaw(
+    stiffness=C_LINE, damping=2.0, damping_option="indentation", indentation_exponent=0.0
+)
+SHEET = fp.ShellMaterial(926e6, 0.1, RHO_SHEET, T_SHEET, 1.71e-3)
+
+
+def _settle(b):
+    """The built scene after 0.15 s. Micron-scale contact deflections: the default 0.1 mm step
+    error would leave it chattering."""
+    model = b.finalize()
+    opts = fp.IntegratorOptions(tol_displacement=1e-7)
+    return model, fp.simulate(model, 0.15, dt_out=0.005, options=opts)
+
+
 def _sheet_over_ridge(line_contact: bool):
     """A 100 x 20 mm sheet of ONE quad (nodes only at x = +-50 mm) dropped 1 mm onto a fixed
     box ridge 50 mm wide in x: the ridge lies between the nodes, only the sheet's two long
     edges (5 stations each, at x = -40 ... 40 mm) can find it."""
-    t, rho = 0.3e-3, 2424.0
+    t = T_SHEET
     b = fp.ModelBuilder()
     box = b.add_rigid_body(
         RoundedBox(0.05, 0.1, 0.05, 0.005, mass=1.0), (0.0, 0.0, 0.025), motion="fixed"
     )
     pts, quads = fp.mesh.rectangle(0.1, 0.02, 1, 1, origin=(-0.05, -0.01, 0.05 + t / 2 + 1e-3))
-    ids = b.add_shell_mesh(pts, quads, material=fp.ShellMaterial(926e6, 0.1, rho, t, 1.71e-3))
-    law = ContactLaw(
-        stiffness=1e4, damping=2.0, damping_option="indentation", indentation_exponent=0.0
-    )
-    b.add_body_contact(ids, box, law, radius=t / 2)
+    ids = b.add_shell_mesh(pts, quads, material=SHEET)
+    b.add_body_contact(ids, box, LINE_LAW, radius=t / 2)
     if line_contact:
-        b.add_edge_body_contact(ids, box, law, radius=t / 2, samples=5)
-    model = b.finalize()
-    # micron-scale contact deflections: the default 0.1 mm step error would leave it chattering
-    r = fp.simulate(model, 0.15, dt_out=0.005, options=fp.IntegratorOptions(tol_displacement=1e-7))
+        b.add_edge_body_contact(ids, box, LINE_LAW, radius=t / 2, samples=5)
+    model, r = _settle(b)
     return model, r, ids, t
 
 
@@ -90,7 +102,7 @@ def test_line_contact_holds_a_coarse_sheet_on_a_box_between_its_nodes():
     model, r, ids, t = _sheet_over_ridge(True)
     z = r.positions[-1, ids, 2]
     weight = model.mass[ids, 0].sum() * 9.81
-    sink = weight / (6 * 1e4 / 5)
+    sink = weight / (6 * C_LINE / 5)
     assert (0.05 + t / 2) - z == pytest.approx(np.full(4, sink), rel=0.01)
     assert np.abs(r.velocities[-1, ids, :3]).max() < 1e-3
     _, r0, _, _ = _sheet_over_ridge(False)
@@ -101,22 +113,17 @@ def _strip_across_strip(line_contact: bool):
     """A 20 x 100 mm strip of ONE quad (nodes at y = +-50 mm) dropped 1 mm across a clamped
     100 x 50 mm strip of one quad (y = +-25 mm): no node of the upper strip lies over the lower
     one; the stations of its two long edges (5 each, y = -40 ... 40 mm) at y = -20, 0, 20 mm do."""
-    t, rho = 0.3e-3, 2424.0
-    mat = fp.ShellMaterial(926e6, 0.1, rho, t, 1.71e-3)
+    t = T_SHEET
     b = fp.ModelBuilder()
     p1, q1 = fp.mesh.rectangle(0.1, 0.05, 1, 1, origin=(-0.05, -0.025, 0.0))
-    low = b.add_shell_mesh(p1, q1, material=mat)
+    low = b.add_shell_mesh(p1, q1, material=SHEET)
     b.clamp(low)
     p2, q2 = fp.mesh.rectangle(0.02, 0.1, 1, 1, origin=(-0.01, -0.05, t + 1e-3))
-    up = b.add_shell_mesh(p2, q2, material=mat)
-    law = ContactLaw(
-        stiffness=1e4, damping=2.0, damping_option="indentation", indentation_exponent=0.0
-    )
-    b.add_face_contact(up, low, law, thickness=t)
+    up = b.add_shell_mesh(p2, q2, material=SHEET)
+    b.add_face_contact(up, low, LINE_LAW, thickness=t)
     if line_contact:
-        b.add_edge_face_contact(up, low, law, thickness=t, samples=5)
-    model = b.finalize()
-    r = fp.simulate(model, 0.15, dt_out=0.005, options=fp.IntegratorOptions(tol_displacement=1e-7))
+        b.add_edge_face_contact(up, low, LINE_LAW, thickness=t, samples=5)
+    model, r = _settle(b)
     return model, r, up, t
 
 
@@ -126,7 +133,7 @@ def test_line_contact_holds_a_coarse_strip_across_another_between_its_nodes():
     # rests one contact thickness t above it, sunk by W / (6 c/5); 1 %.
     model, r, up, t = _strip_across_strip(True)
     z = r.positions[-1, up, 2]
-    sink = model.mass[up, 0].sum() * 9.81 / (6 * 1e4 / 5)
+    sink = model.mass[up, 0].sum() * 9.81 / (6 * C_LINE / 5)
     assert t - z == pytest.approx(np.full(4, sink), rel=0.01)
     assert np.abs(r.velocities[-1, up, :3]).max() < 1e-3
     _, r0, _, _ = _strip_across_strip(False)

@@ -36,13 +36,7 @@ import numba as nb
 import numpy as np
 
 from flexparcel.contact.geometry import point_box_contact_derivs
-from flexparcel.contact.law import (
-    P_K_T,
-    P_MAX_PEN,
-    anchored_friction,
-    friction_force_packed,
-    normal_force_packed,
-)
+from flexparcel.contact.law import P_K_T, P_MAX_PEN, contact_friction, normal_force_packed
 from flexparcel.elements.rotations import skew
 
 __all__ = ["box_contact_forces", "edge_box_forces"]
@@ -54,34 +48,27 @@ def _point_box_pair(p, vp, xb, rb, vb, wb, half, r_box, r_p, law, scale, stick, 
     box; the law's force scaled by ``scale``. ``stick``: use the stick model with the
     body-frame anchor ``xi`` (3,).
 
-    Returns (s, force f (3,) on the point, arm a (3,) from the box centre, dF/d[p, x_b,
-    spin_b] (3, 9), dF/d[v_p, v_b, w_b] (3, 9), new elastic displacement (3,), dF_N/ds, normal
-    velocity n . v_rel); s <= 0: no contact (the other outputs are zeros).
+    Returns (s, force f (3,) on the point, arm a (3,) from the box centre, blocks (9, 9) of
+    d[f_p, F_box, M_box] / d[p, x_b, spin_b] and / d[v_p, v_b, w_b] (F_box = -f, M_box =
+    -(a x f); the change of the arm in M_box is left out, see the module docstring), new
+    elastic displacement (3,), dF_N/ds, normal velocity n . v_rel); s <= 0: no contact (the
+    other outputs are zeros).
     """
     s, n, c, _, dn_dp, ds_dth, dn_dth = point_box_contact_derivs(p, xb, rb, half, r_box, r_p)
-    dfk = np.zeros((3, 9))
-    dfc = np.zeros((3, 9))
+    bk = np.zeros((9, 9))
+    bc = np.zeros((9, 9))
     f = np.zeros(3)
     a = np.zeros(3)
-    u_new = np.zeros(3)
     if s <= 0.0:
-        return s, f, a, dfk, dfc, u_new, 0.0, 0.0
+        return s, f, a, bk, bc, np.zeros(3), 0.0, 0.0
     a = c + r_box * n - xb
     vrel = vp - vb - np.cross(wb, a)
     vn = n[0] * vrel[0] + n[1] * vrel[1] + n[2] * vrel[2]
     vt = vrel - vn * n
     fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
-    dft_da = np.zeros((3, 3))
-    e = np.zeros(3)
-    rxi = np.zeros(3)
-    en = 0.0
-    if stick:
-        rxi = rb @ xi
-        e = p - xb - rxi
-        en = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
-        ft, u_new, dft_da, dft_dvt, dft_dfn = anchored_friction(e - en * n, vt, fn, law)
-    else:
-        ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+    rxi = rb @ xi
+    e = p - xb - rxi
+    ft, u_new, dft_da, dft_dvt, dft_dfn, en = contact_friction(stick, e, n, vt, fn, law)
     f = scale * (fn * n + ft)
     # d s / d[p, x_box, spin_box]
     ds = np.zeros(9)
@@ -125,7 +112,29 @@ def _point_box_pair(p, vp, xb, rb, vb, wb, half, r_box, r_p, law, scale, stick, 
             de[i, i] = 1.0
             de[i, 3 + i] = -1.0
         dfk += scale * (dft_da @ (proj @ de - np.outer(n, e @ dn) - en * dn))
-    return s, f, a, dfk, dfc, u_new, dfn_ds, vn
+    # rows [f_p, F_box, M_box] = [f, -f, -(a x f)]
+    mk = skew(a) @ dfk
+    mc = skew(a) @ dfc
+    for i in range(3):
+        for j in range(9):
+            bk[i, j] = dfk[i, j]
+            bk[3 + i, j] = -dfk[i, j]
+            bk[6 + i, j] = -mk[i, j]
+            bc[i, j] = dfc[i, j]
+            bc[3 + i, j] = -dfc[i, j]
+            bc[6 + i, j] = -mc[i, j]
+    return s, f, a, bk, bc, u_new, dfn_ds, vn
+
+
+@nb.njit(cache=True)
+def _box_dofs(out_dofs, k, nodes, box):
+    """DOF numbers of a block over the translations of ``nodes`` then the box's translation
+    and spin."""
+    for r in range(3):
+        for v in range(nodes.shape[0]):
+            out_dofs[k, 3 * v + r] = 6 * nodes[v] + r
+        out_dofs[k, 3 * nodes.shape[0] + r] = 6 * box + r
+        out_dofs[k, 3 * nodes.shape[0] + 3 + r] = 6 * box + 3 + r
 
 
 @nb.njit(cache=True)
@@ -173,9 +182,10 @@ def box_contact_forces(
     deepest = 0.0
     deepest_pair = -1
     worst = 0.0
+    out_dofs[:, :] = -1
+    node_ids = np.empty(1, np.int64)
+    xi = np.zeros(3)
     for q in range(bp_node.shape[0]):
-        for j in range(9):
-            out_dofs[q, j] = -1
         has_anchor_new[q] = 0.0
         act = bp_active[q]
         if act == 0.0:
@@ -184,12 +194,10 @@ def box_contact_forces(
         b = bp_box[q]
         law = laws[bp_law[q]]
         stick = law[P_K_T] > 0.0
-        if has_anchor[q] != 0.0:
-            xi = anchor[q].copy()
-        else:
+        if stick:
             # a new contact anchors where the node was at the step's start, carried by the box
-            xi = rot0[b].T @ (pos0[node] - pos0[b])
-        s, f, a, dfk, dfc, u_new, dfn_ds, vn = _point_box_pair(
+            xi = anchor[q] if has_anchor[q] != 0.0 else rot0[b].T @ (pos0[node] - pos0[b])
+        s, f, a, bk, bc, u_new, dfn_ds, vn = _point_box_pair(
             pos[node], vel[node, :3], pos[b], rot[b], vel[b, :3], vel[b, 3:], box_half[b],
             box_radius[b], bp_radius[q], law, act, stick, xi,
         )  # fmt: skip
@@ -211,21 +219,10 @@ def box_contact_forces(
             out_f[node, i] += f[i]
             out_f[b, i] -= f[i]
             out_f[b, 3 + i] -= m[i]
-        wa = skew(a)
-        mk = wa @ dfk
-        mc = wa @ dfc
-        for i in range(3):
-            for j in range(9):
-                out_k[q, i, j] = dfk[i, j]
-                out_k[q, 3 + i, j] = -dfk[i, j]
-                out_k[q, 6 + i, j] = -mk[i, j]
-                out_c[q, i, j] = dfc[i, j]
-                out_c[q, 3 + i, j] = -dfc[i, j]
-                out_c[q, 6 + i, j] = -mc[i, j]
-        for i in range(3):
-            out_dofs[q, i] = 6 * node + i
-            out_dofs[q, 3 + i] = 6 * b + i
-            out_dofs[q, 6 + i] = 6 * b + 3 + i
+        out_k[q] = bk
+        out_c[q] = bc
+        node_ids[0] = node
+        _box_dofs(out_dofs, q, node_ids, b)
     return n_contact, deepest, deepest_pair, worst
 
 
@@ -244,6 +241,9 @@ def edge_box_forces(
     n_contact = 0
     deepest = 0.0
     worst = 0.0
+    out_dofs[:, :] = -1
+    if act == 0.0:
+        return 0, 0.0, 0.0
     scale = act / samples
     xb = pos[box]
     rb = rot[box]
@@ -252,19 +252,17 @@ def edge_box_forces(
     half = box_half[box]
     r_box = box_radius[box]
     xi = np.zeros(3)
+    tmap = np.zeros((9, 12))  # [p, x_box, spin_box] from [x_i, x_j, x_box, spin_box]
+    for i in range(6):
+        tmap[3 + i, 6 + i] = 1.0
     for e in range(edges.shape[0]):
-        for j in range(12):
-            out_dofs[e, j] = -1
-        if act == 0.0:
-            continue
         i0, i1 = edges[e, 0], edges[e, 1]
         touched = False
         for st in range(samples):
             t = (st + 0.5) / samples
-            w = np.array([1.0 - t, t])
-            p = w[0] * pos[i0] + w[1] * pos[i1]
-            vp = w[0] * vel[i0, :3] + w[1] * vel[i1, :3]
-            s, f, a, dfk, dfc, _, dfn_ds, vn = _point_box_pair(
+            p = (1.0 - t) * pos[i0] + t * pos[i1]
+            vp = (1.0 - t) * vel[i0, :3] + t * vel[i1, :3]
+            s, f, a, bk, bc, _, dfn_ds, vn = _point_box_pair(
                 p, vp, xb, rb, vb, wb, half, r_box, radius, law, scale, False, xi
             )
             if s <= 0.0:
@@ -273,45 +271,20 @@ def edge_box_forces(
             n_contact += 1
             deepest = max(deepest, s)
             worst = max(worst, s / law[P_MAX_PEN])
-            mw = w[0] * mass[i0] + w[1] * mass[i1]
+            mw = (1.0 - t) * mass[i0] + t * mass[i1]
             if abs(vn) > v_impact and mw > 0.0:
                 out_w2[0] = max(out_w2[0], scale * dfn_ds / mw)
             m = np.cross(a, f)
             for r in range(3):
-                out_f[i0, r] += w[0] * f[r]
-                out_f[i1, r] += w[1] * f[r]
+                out_f[i0, r] += (1.0 - t) * f[r]
+                out_f[i1, r] += t * f[r]
                 out_f[box, r] -= f[r]
                 out_f[box, 3 + r] -= m[r]
-            # rows: [w0 f, w1 f, -f, -(a x f)]; columns: d/dx_i = w0 d/dp, d/dx_j = w1 d/dp,
-            # then the box's translation and spin as they are
-            wa = skew(a)
-            mk = wa @ dfk
-            mc = wa @ dfc
-            rows_k = np.zeros((12, 9))
-            rows_c = np.zeros((12, 9))
-            for r in range(3):
-                for c in range(9):
-                    rows_k[r, c] = w[0] * dfk[r, c]
-                    rows_k[3 + r, c] = w[1] * dfk[r, c]
-                    rows_k[6 + r, c] = -dfk[r, c]
-                    rows_k[9 + r, c] = -mk[r, c]
-                    rows_c[r, c] = w[0] * dfc[r, c]
-                    rows_c[3 + r, c] = w[1] * dfc[r, c]
-                    rows_c[6 + r, c] = -dfc[r, c]
-                    rows_c[9 + r, c] = -mc[r, c]
-            for r in range(12):
-                for c in range(3):
-                    out_k[e, r, c] += w[0] * rows_k[r, c]
-                    out_k[e, r, 3 + c] += w[1] * rows_k[r, c]
-                    out_c[e, r, c] += w[0] * rows_c[r, c]
-                    out_c[e, r, 3 + c] += w[1] * rows_c[r, c]
-                for c in range(6):
-                    out_k[e, r, 6 + c] += rows_k[r, 3 + c]
-                    out_c[e, r, 6 + c] += rows_c[r, 3 + c]
+                tmap[r, r] = 1.0 - t
+                tmap[r, 3 + r] = t
+            # the station's force rows and position columns both split over the edge's nodes
+            out_k[e] += tmap.T @ bk @ tmap
+            out_c[e] += tmap.T @ bc @ tmap
         if touched:
-            for r in range(3):
-                out_dofs[e, r] = 6 * i0 + r
-                out_dofs[e, 3 + r] = 6 * i1 + r
-                out_dofs[e, 6 + r] = 6 * box + r
-                out_dofs[e, 9 + r] = 6 * box + 3 + r
+            _box_dofs(out_dofs, e, edges[e], box)
     return n_contact, deepest, worst

@@ -34,13 +34,7 @@ import numba as nb
 import numpy as np
 
 from flexparcel.contact.geometry import point_triangle, point_triangle_contact_derivs
-from flexparcel.contact.law import (
-    P_K_T,
-    P_MAX_PEN,
-    anchored_friction,
-    friction_force_packed,
-    normal_force_packed,
-)
+from flexparcel.contact.law import P_K_T, P_MAX_PEN, contact_friction, normal_force_packed
 
 __all__ = ["face_sides", "face_contact_forces", "edge_stations", "edge_face_forces"]
 
@@ -92,25 +86,17 @@ def _point_face_pair(p, vp, tx, tv, thickness, side, law, scale, stick, m, c0):
     bk = np.zeros((12, 12))
     bc = np.zeros((12, 12))
     f = np.zeros(3)
-    u_new = np.zeros(3)
     s, _, bary, n, _, _, ds, dn, dbary = point_triangle_contact_derivs(
         p, tx[0], tx[1], tx[2], thickness, side
     )
     if s <= 0.0:
-        return s, f, bary, bk, bc, u_new, 0.0, 0.0
+        return s, f, bary, bk, bc, np.zeros(3), 0.0, 0.0
     vrel = vp - bary[0] * tv[0] - bary[1] * tv[1] - bary[2] * tv[2]
     vn = n[0] * vrel[0] + n[1] * vrel[1] + n[2] * vrel[2]
     vt = vrel - vn * n
     fn, dfn_ds, dfn_dsd = normal_force_packed(s, -vn, law)
-    dft_da = np.zeros((3, 3))
-    e = np.zeros(3)
-    en = 0.0
-    if stick:
-        e = p - c0 - m[0] * tx[0] - m[1] * tx[1] - m[2] * tx[2]
-        en = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
-        ft, u_new, dft_da, dft_dvt, dft_dfn = anchored_friction(e - en * n, vt, fn, law)
-    else:
-        ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+    e = p - c0 - m[0] * tx[0] - m[1] * tx[1] - m[2] * tx[2]
+    ft, u_new, dft_da, dft_dvt, dft_dfn, en = contact_friction(stick, e, n, vt, fn, law)
     f = scale * (fn * n + ft)
     w = np.empty(4)
     w[0] = 1.0
@@ -156,13 +142,11 @@ def _point_face_pair(p, vp, tx, tv, thickness, side, law, scale, stick, m, c0):
 
 
 @nb.njit(cache=True)
-def _best_candidates(pairs, sides, points, tris, pos, thickness, out_dofs):
-    """Deepest candidate per query point (-1 if none penetrates); clears ``out_dofs``."""
+def _best_candidates(pairs, sides, points, tris, pos, thickness):
+    """Deepest candidate per query point (-1 if none penetrates)."""
     best = np.full(points.shape[0], -1)
     best_s = np.zeros(points.shape[0])
     for k in range(pairs.shape[0]):
-        for j in range(out_dofs.shape[1]):
-            out_dofs[k, j] = -1
         q = pairs[k, 0]
         t = tris[pairs[k, 1]]
         dist = point_triangle(points[q], pos[t[0]], pos[t[1]], pos[t[2]])[0]
@@ -208,7 +192,8 @@ def face_contact_forces(
     for q in range(npts):
         points[q] = pos[nodes[q]]
         has_anchor_new[q] = 0.0
-    best = _best_candidates(pairs, sides, points, tris, pos, thickness, out_dofs)
+    out_dofs[:, :] = -1
+    best = _best_candidates(pairs, sides, points, tris, pos, thickness)
     n_contact = 0
     deepest = 0.0
     worst = 0.0
@@ -291,7 +276,8 @@ def edge_face_forces(
     x_b, x_c] (``out_k``) and / d[v...] (``out_c``), DOF numbers (K, 15) (-1 if unused).
     Returns (stations in contact, deepest penetration [m], worst penetration / max)."""
     stations, _ = edge_stations(edges, samples, pos)
-    best = _best_candidates(pairs, sides, stations, tris, pos, thickness, out_dofs)
+    out_dofs[:, :] = -1
+    best = _best_candidates(pairs, sides, stations, tris, pos, thickness)
     if act == 0.0:
         return 0, 0.0, 0.0
     n_contact = 0

@@ -93,6 +93,7 @@ __all__ = [
     "stick_friction",
     "stick_friction_packed",
     "anchored_friction",
+    "contact_friction",
 ]
 
 # Damping option codes as stored in the packed vector (an int code keeps kernels branch-cheap).
@@ -745,6 +746,24 @@ def anchored_friction(
         a, vt, f_n, p[P_K_T], p[P_MU_S], p[P_MU_D], p[P_V_S], p[P_V_D]
     )
     return f, u_new, dfa, dfv, dfn
+
+
+@nb.njit(cache=True)
+def contact_friction(stick, e, n, vt, f_n, p):
+    """Friction of a contact point on a moving surface: the stick model on the tangential part
+    ``a = e - (n . e) n`` of ``e`` (3,) = contact point - stick anchor [m] (``stick`` True), or
+    the regularised law on the slip velocity ``vt`` (3,) [m/s].
+
+    Returns (F_T (3,), new elastic displacement (3,), dF_T/da (3, 3), dF_T/dvt (3, 3),
+    dF_T/dF_N (3,), n . e); without the stick model the elastic displacement and dF_T/da are
+    zero. Callers chain dF_T/da with da = P de - n (e . dn) - (n . e) dn, P = I - n n^T.
+    """
+    en = n[0] * e[0] + n[1] * e[1] + n[2] * e[2]
+    if stick:
+        f, u_new, dfa, dfv, dfn = anchored_friction(e - en * n, vt, f_n, p)
+        return f, u_new, dfa, dfv, dfn, en
+    f, dfv, dfn = friction_force_packed(vt, f_n, p)
+    return f, np.zeros(3), np.zeros((3, 3)), dfv, dfn, en
 
 
 @nb.njit(cache=True)

@@ -209,8 +209,10 @@ class _StickAnchors:
         return self.anchor, self.has, self.anchor_trial, self.has_trial
 
     def commit(self) -> None:
-        self.anchor = self.anchor_trial.copy()
-        self.has = self.has_trial.copy()
+        # swap, not copy: the kernels rewrite every trial flag at each evaluation, so the old
+        # committed arrays can serve as the next trial
+        self.anchor, self.anchor_trial = self.anchor_trial, self.anchor
+        self.has, self.has_trial = self.has_trial, self.has
 
 
 class GeneralizedAlpha:
@@ -440,34 +442,32 @@ class GeneralizedAlpha:
         vmax = float(np.sqrt((s0.velocities[:, :3] ** 2).sum(axis=1)).max())
         reach = 2.0 * h * (vmax + 9.81 * h) + 1e-9
         for nodes, tris, thick, _, _ in m.face_sets:
-            pairs = point_triangle_candidates(
-                s0.positions[nodes], thick, tris, s0.positions, thick + reach, point_node=nodes
+            points = s0.positions[nodes]
+            self._face_cands.append(
+                self._point_face_candidates(points, nodes[:, None], tris, thick, reach, s0)
             )
-            if pairs.size and self._adjacent_keys.size:
-                # a node never touches a face next to it in its own mesh: it lies on the
-                # extension of such a face (a shared border of two layers, a fold), at zero
-                # distance, which would read as a full-depth penetration
-                corner = tris[pairs[:, 1]]
-                keys = nodes[pairs[:, 0], None] * m.node_count + corner
-                near = np.isin(keys, self._adjacent_keys).any(axis=1)
-                pairs = pairs[~near]
-            sides = face_sides(pairs, s0.positions[nodes], tris, s0.positions)
-            self._face_cands.append((pairs, sides))
         for edges, tris, thick, samples, _, _ in m.edge_face_sets:
             points, owners = edge_stations(edges, samples, s0.positions)
-            pairs = point_triangle_candidates(
-                points, thick, tris, s0.positions, thick + reach, point_node=owners
+            self._edge_face_cands.append(
+                self._point_face_candidates(points, owners, tris, thick, reach, s0)
             )
-            if pairs.size and self._adjacent_keys.size:
-                # as for nodes: a station never touches a face next to either of its nodes
-                corner = tris[pairs[:, 1]]
-                near = np.zeros(len(pairs), dtype=bool)
-                for a in range(2):
-                    keys = owners[pairs[:, 0], a, None] * m.node_count + corner
-                    near |= np.isin(keys, self._adjacent_keys).any(axis=1)
-                pairs = pairs[~near]
-            sides = face_sides(pairs, points, tris, s0.positions)
-            self._edge_face_cands.append((pairs, sides))
+
+    def _point_face_candidates(self, points, owners, tris, thick, reach, s0: State):
+        """Candidate (point, face) pairs of ``points`` (N, 3) owned by nodes ``owners`` (N, k)
+        and the side of its face each point starts on."""
+        pairs = point_triangle_candidates(
+            points, thick, tris, s0.positions, thick + reach, point_node=owners
+        )
+        if pairs.size and self._adjacent_keys.size:
+            # a point never touches a face next to one of its nodes in its own mesh: it lies on
+            # the extension of such a face (a shared border of two layers, a fold), at zero
+            # distance, which would read as a full-depth penetration
+            corner = tris[pairs[:, 1]]
+            own = owners[pairs[:, 0]]
+            keys = own[:, :, None] * self.model.node_count + corner[:, None, :]
+            near = np.isin(keys, self._adjacent_keys).any(axis=(1, 2))
+            pairs = pairs[~near]
+        return pairs, face_sides(pairs, points, tris, s0.positions)
 
     def _add_contact_tangent(self, data, cdq, cdv, cv):
         """Residual r = ... - f_contact: add -(dF/dq + cv dF/dv) into each node's block."""

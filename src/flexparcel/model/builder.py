@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flexparcel.elements import shell
+from flexparcel.model.checks import finite_number
 from flexparcel.model.materials import ShellMaterial
 from flexparcel.model.mesh import quads_to_triangles
 from flexparcel.model.rigid import PrescribedMotion, RoundedBox
@@ -424,10 +425,8 @@ class ModelBuilder:
             raise ValueError(
                 f"add_contact: unknown plane {plane!r}; planes are 0..{len(self._planes) - 1}"
             )
-        r = float(radius)
-        if not (np.isfinite(r) and r >= 0.0):
-            raise ValueError(f"add_contact: radius must be >= 0 m, got {radius!r}")
-        sched = schedule if schedule is not None else Schedule.constant()
+        r = _nonnegative_radius("add_contact", radius)
+        sched = _schedule(schedule)
         rigid = {node: shape for node, shape, _ in self._rigid}
         if isinstance(target, int | np.integer) and int(target) in rigid:
             shape = rigid[int(target)]
@@ -502,19 +501,13 @@ class ModelBuilder:
     ) -> None:
         """Contact between shell nodes (contact radius [m], e.g. half the shell thickness) and
         the rounded box of rigid body ``body`` (its node id), e.g. packaging on its content."""
-        _require_law("add_body_contact", law)
-        rigid = {node for node, _, _ in self._rigid}
-        if not (isinstance(body, int | np.integer) and int(body) in rigid):
-            raise ValueError(
-                f"add_body_contact: body {body!r} is not a rigid body's node; rigid bodies: "
-                f"{sorted(rigid)}"
-            )
-        nodes = self._check_ids("add_body_contact", node_ids)
-        r = float(radius)
-        if not (np.isfinite(r) and r >= 0.0):
-            raise ValueError(f"add_body_contact: radius must be >= 0 m, got {radius!r}")
-        sched = schedule if schedule is not None else Schedule.constant()
-        self._body_contacts.append((nodes, int(body), r, law, sched))
+        name = "add_body_contact"
+        _require_law(name, law)
+        body = self._rigid_body(name, body)
+        nodes = self._check_ids(name, node_ids)
+        r = _nonnegative_radius(name, radius)
+        sched = _schedule(schedule)
+        self._body_contacts.append((nodes, body, r, law, sched))
 
     def add_face_contact(
         self, node_ids, face_node_ids, law, *, thickness: float, schedule: Schedule | None = None
@@ -528,7 +521,7 @@ class ModelBuilder:
         nodes = self._check_ids(name, node_ids)
         h = _positive_thickness(name, thickness)
         tris = self._face_triangles(name, face_node_ids)
-        sched = schedule if schedule is not None else Schedule.constant()
+        sched = _schedule(schedule)
         self._face_contacts.append((nodes, tris, h, law, sched))
 
     def add_edge_face_contact(
@@ -547,12 +540,13 @@ class ModelBuilder:
         stations (see :func:`flexparcel.contact.faces.edge_face_forces`). ``thickness`` [m] as
         for :meth:`add_face_contact`."""
         name = "add_edge_face_contact"
+        _require_law(name, law)
         h = _positive_thickness(name, thickness)
-        edges, _, _, samples, law, sched = self._edge_set(
-            name, node_ids, -1, law, 0.0, samples, schedule
-        )
+        edges = self._shell_edges(name, node_ids)
         tris = self._face_triangles(name, face_node_ids)
-        self._edge_face_contacts.append((edges, tris, h, samples, law, sched))
+        self._edge_face_contacts.append(
+            (edges, tris, h, _sample_count(name, samples), law, _schedule(schedule))
+        )
 
     def _face_triangles(self, name: str, face_node_ids) -> np.ndarray:
         """Triangles (M, 3) of the shell faces (quads split once) and solid boundary faces
@@ -611,27 +605,32 @@ class ModelBuilder:
         """Line contact of the shell edges whose two nodes are both in ``node_ids`` against the
         rounded box of rigid body ``body`` (its node id), e.g. a packaging's border against its
         content's edges; ``samples`` stations per edge (see :mod:`flexparcel.contact.bodies`)."""
-        rigid = {node for node, _, _ in self._rigid}
-        if not (isinstance(body, int | np.integer) and int(body) in rigid):
-            raise ValueError(
-                f"add_edge_body_contact: body {body!r} is not a rigid body's node; rigid "
-                f"bodies: {sorted(rigid)}"
-            )
+        name = "add_edge_body_contact"
         self._edge_body_contacts.append(
             self._edge_set(
-                "add_edge_body_contact", node_ids, int(body), law, radius, samples, schedule
+                name, node_ids, self._rigid_body(name, body), law, radius, samples, schedule
             )  # fmt: skip
         )
 
+    def _rigid_body(self, name: str, body) -> int:
+        """``body`` as a rigid body's node id, else ``ValueError`` listing the rigid bodies."""
+        rigid = {node for node, _, _ in self._rigid}
+        if not (isinstance(body, int | np.integer) and int(body) in rigid):
+            raise ValueError(
+                f"{name}: body {body!r} is not a rigid body's node; rigid bodies: {sorted(rigid)}"
+            )
+        return int(body)
+
     def _edge_set(self, name, node_ids, target, law, radius, samples, schedule) -> tuple:
-        """(edges (E, 2), target, radius, samples, law, schedule) of a line-contact set, with
-        its input checked."""
+        """(edges (E, 2), target, radius, samples, law, schedule) of a line-contact set against
+        a plane or a body, with its input checked."""
         _require_law(name, law)
-        r = float(radius)
-        if not (np.isfinite(r) and r >= 0.0):
-            raise ValueError(f"{name}: radius must be >= 0 m, got {radius!r}")
-        if int(samples) != samples or samples < 1:
-            raise ValueError(f"{name}: samples must be an integer >= 1, got {samples!r}")
+        r = _nonnegative_radius(name, radius)
+        n = _sample_count(name, samples)
+        return (self._shell_edges(name, node_ids), target, r, n, law, _schedule(schedule))
+
+    def _shell_edges(self, name: str, node_ids) -> np.ndarray:
+        """Shell edges (E, 2), sorted, whose two nodes are both in ``node_ids``."""
         nodes = set(self._check_ids(name, node_ids).tolist())
         edges = set()
         for lst in self._cells.values():
@@ -643,8 +642,7 @@ class ModelBuilder:
                             edges.add((min(u, v), max(u, v)))
         if not edges:
             raise ValueError(f"{name}: node_ids contain no shell edge")
-        sched = schedule if schedule is not None else Schedule.constant()
-        return (np.array(sorted(edges), dtype=np.int64), target, r, int(samples), law, sched)
+        return np.array(sorted(edges), dtype=np.int64)
 
     def add_self_contact(
         self, node_ids, law, *, thickness: float, schedule: Schedule | None = None
@@ -700,7 +698,7 @@ class ModelBuilder:
         v = np.asarray(vector, dtype=float)
         if v.shape != (3,) or not np.all(np.isfinite(v)):
             raise ValueError(f"{what}: vector must be 3 finite numbers, got {vector!r}")
-        sched = schedule if schedule is not None else Schedule.constant()
+        sched = _schedule(schedule)
         if not isinstance(sched, Schedule):
             raise TypeError(f"{what}: schedule must be a Schedule")
         self._loads.append(_Load(ids, v, is_moment, bool(follower), sched))
@@ -852,54 +850,40 @@ class ModelBuilder:
             for (kind, cells, ref, beta), smap in zip(self._solids, solid_maps, strict=True)
         ]
         laws, law_index, csched = [], [], []
+
+        def index_of(lst: list, item) -> int:
+            if item not in lst:
+                lst.append(item)
+            return lst.index(item)
+
+        def indexed(entries: list) -> list:
+            """Contact sets (..., law, schedule) as (..., law index, schedule index)."""
+            return [(*e[:-2], index_of(laws, e[-2]), index_of(csched, e[-1])) for e in entries]
+
         cpn, cpo, cpr, cpp, cpl, cps = [], [], [], [], [], []
         bpn, bpb, bpr, bpl, bps = [], [], [], [], []
-        for nodes, body, r, law, sched in self._body_contacts:
-            for lst, item in ((laws, law), (csched, sched)):
-                if item not in lst:
-                    lst.append(item)
+        for nodes, body, r, li, si in indexed(self._body_contacts):
             bpn.append(nodes)
             bpb.append(np.full(len(nodes), body))
             bpr.append(np.full(len(nodes), r))
-            bpl.append(np.full(len(nodes), laws.index(law)))
-            bps.append(np.full(len(nodes), csched.index(sched)))
-        edge_sets = []
-        edge_box_sets = []
-        for out, given in ((edge_sets, self._edge_contacts),
-                           (edge_box_sets, self._edge_body_contacts)):  # fmt: skip
-            for edges, target, radius, samples, law, sched in given:
-                for lst, item in ((laws, law), (csched, sched)):
-                    if item not in lst:
-                        lst.append(item)
-                out.append((edges, target, radius, samples, laws.index(law), csched.index(sched)))
-        edge_face_sets = []
-        for edges, tris, h, samples, law, sched in self._edge_face_contacts:
-            for lst, item in ((laws, law), (csched, sched)):
-                if item not in lst:
-                    lst.append(item)
-            edge_face_sets.append((edges, tris, h, samples, laws.index(law), csched.index(sched)))
-        face_sets = []
-        for nodes, tris, h, law, sched in self._face_contacts:
-            for lst, item in ((laws, law), (csched, sched)):
-                if item not in lst:
-                    lst.append(item)
-            face_sets.append((nodes, tris, h, laws.index(law), csched.index(sched)))
+            bpl.append(np.full(len(nodes), li))
+            bps.append(np.full(len(nodes), si))
+        edge_sets = indexed(self._edge_contacts)
+        edge_box_sets = indexed(self._edge_body_contacts)
+        edge_face_sets = indexed(self._edge_face_contacts)
+        face_sets = indexed(self._face_contacts)
         box_half = np.zeros((n, 3))
         box_rad = np.zeros(n)
         for node, shape, _ in self._rigid:
             box_half[node] = shape.half_inner
             box_rad[node] = shape.edge_radius
-        for nodes, offsets, radii, plane, law, sched in self._contacts:
-            if law not in laws:
-                laws.append(law)
-            if sched not in csched:
-                csched.append(sched)
+        for nodes, offsets, radii, plane, li, si in indexed(self._contacts):
             cpn.append(nodes)
             cpo.append(offsets)
             cpr.append(radii)
             cpp.append(np.full(len(nodes), plane))
-            cpl.append(np.full(len(nodes), laws.index(law)))
-            cps.append(np.full(len(nodes), csched.index(sched)))
+            cpl.append(np.full(len(nodes), li))
+            cps.append(np.full(len(nodes), si))
         del law_index
         cells = [(k, np.concatenate(v)) for k, v in self._cells.items()]
         return Model(
@@ -1003,10 +987,28 @@ def _require_law(name: str, law) -> None:
 
 
 def _positive_thickness(name: str, thickness) -> float:
-    h = float(thickness)
-    if not (np.isfinite(h) and h > 0.0):
+    h = finite_number(f"{name}: thickness", thickness)
+    if not h > 0.0:
         raise ValueError(f"{name}: thickness must be > 0 m, got {thickness!r}")
     return h
+
+
+def _nonnegative_radius(name: str, radius) -> float:
+    r = finite_number(f"{name}: radius", radius)
+    if not r >= 0.0:
+        raise ValueError(f"{name}: radius must be >= 0 m, got {radius!r}")
+    return r
+
+
+def _sample_count(name: str, samples) -> int:
+    n = finite_number(f"{name}: samples", samples)
+    if n != int(n) or n < 1:
+        raise ValueError(f"{name}: samples must be an integer >= 1, got {samples!r}")
+    return int(n)
+
+
+def _schedule(schedule: Schedule | None) -> Schedule:
+    return schedule if schedule is not None else Schedule.constant()
 
 
 def _solid_boundary_triangles(solids: list, nodes: set) -> np.ndarray:
