@@ -50,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     build = resolve_consignment(args.consignment, element_size_m(args.element_size))
     print(
         f"assembling {build.spec.id}: {build.spec.length_mm:g} x {build.spec.width_mm:g} mm "
-        f"{build.spec.packaging_material}, {build.element_size * 1e3:g} mm elements"
+        f"{build.spec.packaging_material} (flat {build.flat_size[0] * 1e3:.0f} x "
+        f"{build.flat_size[1] * 1e3:.0f} mm), {build.element_size * 1e3:g} mm elements"
     )
     try:
         snap, files = assemble_job(build, args.out, progress=not args.no_progress)

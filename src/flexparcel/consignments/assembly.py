@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -30,6 +30,7 @@ from flexparcel.consignments.build import (
     default_packaging_content_law,
 )
 from flexparcel.consignments.snapshot import Snapshot
+from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.model.builder import Model, ModelBuilder, State
@@ -45,6 +46,18 @@ __all__ = [
 ]
 
 
+ASSEMBLY_FRICTION = ("none", "regularised", "stick")
+
+
+def _assembly_law(friction: str) -> ContactLaw:
+    """The packaging-content law of the assembly: Table 6's normal law with ``friction``
+    ("none": mu = 0; "regularised": eq. 8; "stick": the stick model)."""
+    law = default_packaging_content_law(stick_model=friction == "stick")
+    if friction == "none":
+        law = replace(law, mu_static=0.0, mu_dynamic=0.0)
+    return law
+
+
 class AssemblyError(RuntimeError):
     """The packaging could not be opened or did not come to rest."""
 
@@ -54,11 +67,16 @@ class AssemblySettings:
     """Settings of :func:`assemble` (SI units)."""
 
     opening_pressure: float = 5000.0
-    """Opening force per layer divided by the flat packaging area [Pa], spread equally over
-    the layer's nodes. It grows linearly from 0 to this value over ``max_opening_time`` and
-    stops growing as soon as the packaging is open (a flat envelope only opens by bending at
-    its border and stretching, so the force needed depends strongly on the material and the
-    mesh; the ramp finds it)."""
+    """Largest opening force per layer divided by the flat packaging area [Pa], spread
+    equally over the layer's nodes. The force grows geometrically from
+    ``opening_start_pressure``, doubling every ``opening_doubling_time``, up to this value,
+    and stops growing as soon as the packaging is open (a flat envelope only opens by bending
+    at its border and stretching, so the force needed depends strongly on the material and
+    the mesh; the ramp finds it: 4.5 kPa for KP/BW's bubble wrap at 25 mm, a few Pa for a
+    polybag). A linear ramp (25 kPa/s) threw PB's 55 g/m^2 film open at about 20 m/s: it
+    ballooned to +-48 mm and stayed so."""
+    opening_start_pressure: float = 1.0
+    opening_doubling_time: float = 0.01
     check_every: float = 0.005
     max_opening_time: float = 0.2
     margin: float = 1.5e-3
@@ -82,23 +100,34 @@ class AssemblySettings:
     pulled up). ``None``: 0.6 when a flat envelope side is
     shorter than the content side + 2 x its height, else 1 (no growth)."""
     growth_time: float = 0.1
-    growth_chunks: int = 20
-    """A flexible content grows in this many jumps of its reference geometry (a rigid one
-    grows continuously)."""
-    stick_model: bool = False
-    """Packaging-content friction by the stick model during the assembly (the tests after it
-    use it by default). Off: the paper's regularised law. The stick model's tangential springs
-    have no damping of their own, and BW at 25 mm then did not come to rest (6.3 mJ kinetic
-    energy after 0.4 s of settling, where the regularised law settles it after 0.51 s);
-    KP/BW, which needs no growth, assembles with it in 80 s instead of 169 s."""
+    closing_pressure: float = 50.0
+    """While a shrunk content grows back, the layers are pressed onto it with this pressure
+    [Pa] (the opening force reversed), released over ``release_time`` before the growth
+    ends. Without it, a limp film left ballooned by the opening (PB at 25 mm: +-48 mm) does
+    not close by itself in the assembly's zero gravity; its seam, pulled inward by the
+    balloon, let the growing content's sides pass through it."""
+    friction: str = "stick"
+    """Friction of the packaging-content and layer-on-layer contacts while the consignment
+    settles: "stick" (the stick model, as in the tests; default), "regularised" (the paper's
+    eq. 8) or "none". BW at 25 mm settled with the stick model in 0.05 s simulated (57 s
+    wall for the whole assembly); with eq. 8 its Newton iterations cycled at 30-70 us steps
+    (see :func:`flexparcel.consignments.build.default_packaging_content_law`).
+    The closing before it (release and content growth) is always frictionless: the growth is
+    an assembly device, not physics, and a growing content's faces, expanding under the film,
+    would drag it along so that it cannot slide round the corners (KP at 25 mm with the
+    regularised law throughout was pressed 1.9 mm into its content, at 6.7 us steps, halfway
+    through the growth). Friction while settling keeps the film from sliding off-centre along
+    its content (frictionless throughout, BW's film ended 19 mm off-centre). The tests after
+    the assembly use their own friction."""
 
     def __post_init__(self) -> None:
-        if not isinstance(self.stick_model, bool):
+        if self.friction not in ASSEMBLY_FRICTION:
             raise ValueError(
-                f"AssemblySettings.stick_model must be true or false, got {self.stick_model!r}"
+                f"AssemblySettings.friction must be one of {', '.join(ASSEMBLY_FRICTION)}, "
+                f"got {self.friction!r}"
             )
         for k, v in asdict(self).items():
-            if (k == "content_scale" and v is None) or k == "stick_model":
+            if (k == "content_scale" and v is None) or k == "friction":
                 continue
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"AssemblySettings.{k} must be > 0, got {v!r}")
@@ -109,19 +138,36 @@ class AssemblySettings:
 
 
 def _model(build: ConsignmentBuild, settings: AssemblySettings, contact: bool,
-           forces: Schedule) -> tuple[Model, Consignment]:  # fmt: skip
+           forces: Schedule | None, friction: str) -> tuple[Model, Consignment]:  # fmt: skip
+    """The assembly model: no gravity, mass damping, the content contact on or off with
+    ``friction`` (see :func:`_assembly_law`), opening forces on the layers by ``forces``
+    (None: none)."""
     b = ModelBuilder(gravity=(0.0, 0.0, 0.0), mass_damping=settings.mass_damping)
     c = add_consignment(
         b,
         build,
-        content_law=default_packaging_content_law(stick_model=settings.stick_model),
+        content_law=_assembly_law(friction),
         content_contact=Schedule.constant(1.0 if contact else 0.0),
     )
-    length, width = build.flat_size
-    total = settings.opening_pressure * length * width
-    b.add_force(c.top, (0.0, 0.0, total / len(c.top)), schedule=forces)
-    b.add_force(c.bottom, (0.0, 0.0, -total / len(c.bottom)), schedule=forces)
+    if forces is not None:
+        length, width = build.flat_size
+        total = settings.opening_pressure * length * width
+        b.add_force(c.top, (0.0, 0.0, total / len(c.top)), schedule=forces)
+        b.add_force(c.bottom, (0.0, 0.0, -total / len(c.bottom)), schedule=forces)
     return b.finalize(), c
+
+
+def _opening_schedule(st: AssemblySettings) -> Schedule:
+    """Opening force factor (of ``opening_pressure``) in time: p_start 2^(t / t_double),
+    capped at 1, sampled every quarter doubling time (piecewise linear in between)."""
+    p0 = st.opening_start_pressure / st.opening_pressure
+    if p0 >= 1.0:
+        return Schedule.constant(1.0)
+    t_full = st.opening_doubling_time * np.log2(1.0 / p0)
+    dt = st.opening_doubling_time / 4.0
+    times = np.arange(0.0, t_full, dt)
+    values = p0 * 2.0 ** (times / st.opening_doubling_time)
+    return Schedule(tuple(times) + (t_full + dt,), tuple(values) + (1.0,))
 
 
 def content_scale_for(build: ConsignmentBuild) -> float:
@@ -136,21 +182,24 @@ def content_scale_for(build: ConsignmentBuild) -> float:
 def _scale_content(
     model: Model, c: Consignment, s: State | None, f: float | Schedule, xref_full: list
 ) -> None:
-    """Give the content ``f`` times its size (a number, or for a rigid content a
-    Schedule of it): a rigid content through ``Model.box_growth``, a flexible one by scaling
-    its elements' full-size reference geometry ``xref_full`` (one array per solid group) and,
-    if ``s`` is given, its nodes about the content centre."""
+    """Give the content ``f`` times its size (a number or a Schedule of it): a rigid content
+    through ``Model.box_growth``, a flexible one through ``Model.solid_growth`` (its elements'
+    full-size reference geometry ``xref_full``, one array per solid group, scaled at every
+    step: a jump would shock the elements and their contacts) and, if ``s`` is given, its
+    nodes about the content centre (by ``f`` at ``s.time``)."""
+    sched = f if isinstance(f, Schedule) else Schedule.constant(f)
     if c.content_body is not None:
         outer = np.asarray(c.content_box, dtype=float) / 2
-        sched = f if isinstance(f, Schedule) else Schedule.constant(f)
         model.box_growth[:] = [(c.content_body, outer, sched)]
         return
+    model.solid_growth[:] = [(i, x, sched) for i, x in enumerate(xref_full)]
+    t = 0.0 if s is None else s.time
     for g, xref0 in zip(model.solid_groups, xref_full, strict=True):
-        g["xref"] = np.ascontiguousarray(xref0 * f)
+        g["xref"] = np.ascontiguousarray(xref0 * sched(t))
     if s is not None:
         p = s.positions[c.content_nodes]
         centre = 0.5 * (p.min(axis=0) + p.max(axis=0))
-        s.positions[c.content_nodes] = centre + (p - centre) * f
+        s.positions[c.content_nodes] = centre + (p - centre) * sched(t)
 
 
 def _content_extent(c: Consignment, s: State, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -206,8 +255,8 @@ def assemble(
     )
     wall0 = time.perf_counter()
     f0 = content_scale_for(build) if st.content_scale is None else st.content_scale
-    opening = Schedule((0.0, st.max_opening_time), (0.0, 1.0))
-    model_a, c = _model(build, st, False, opening)
+    opening = _opening_schedule(st)
+    model_a, c = _model(build, st, False, opening, "none")
     xref_full = [g["xref"].copy() for g in model_a.solid_groups]
     s = model_a.initial_state()
     if f0 < 1.0:
@@ -229,43 +278,40 @@ def assemble(
     t_open = s.time
     t_closed = t_open + st.release_time
     release = Schedule((t_open, t_closed), (opening(t_open), 0.0))
-    model_b, c = _model(build, st, True, release)
+    if f0 < 1.0:
+        t_grown = t_closed + st.growth_time
+        hold = max(t_closed + 0.5 * (t_grown - t_closed), t_grown - st.release_time)
+        press = -st.closing_pressure / st.opening_pressure
+        release = Schedule((t_open, t_closed, hold, t_grown), (opening(t_open), press, press, 0.0))
+    # closing: release (and growth), frictionless (see AssemblySettings.friction)
+    model_b, c = _model(build, st, True, release, "none")
     t_end = t_closed
     if f0 < 1.0:
-        # the content grows back once the forces are released: a rigid one continuously (a
-        # jump would be a jump in penetration), a flexible one in small jumps of its
-        # reference geometry (its elements then expand smoothly)
-        growth = Schedule((t_closed, t_closed + st.growth_time), (f0, 1.0))
-        _scale_content(model_b, c, None, growth if c.content_body is not None else f0,
-                       xref_full)  # fmt: skip
-        if c.content_body is None:
-            r = simulate(model_b, t_closed, dt_out=st.release_time, options=opt, state=s)
-            s, steps = r.final_state, steps + r.stats["steps"]
-            for k in range(1, st.growth_chunks + 1):
-                _scale_content(model_b, c, None, f0 + (1.0 - f0) * k / st.growth_chunks,
-                               xref_full)  # fmt: skip
-                t_k = t_closed + st.growth_time * k / st.growth_chunks
-                r = simulate(model_b, t_k, dt_out=t_k - s.time, options=opt, state=s)
-                s, steps = r.final_state, steps + r.stats["steps"]
-                if progress:
-                    progress("growing", s.time)
+        # the content grows back once the forces are released, continuously: a jump would be a
+        # jump in penetration (rigid) or in the elements' strain (flexible)
+        _scale_content(model_b, c, None, Schedule((t_closed, t_closed + st.growth_time),
+                                                  (f0, 1.0)), xref_full)  # fmt: skip
         t_end = t_closed + st.growth_time
-    kin = np.inf
-    while True:
-        r = simulate(model_b, t_end, dt_out=t_end - s.time, options=opt, state=s)
+    r = simulate(model_b, t_end, dt_out=t_end - s.time, options=opt, state=s)
+    s, steps = r.final_state, steps + r.stats["steps"]
+    if progress:
+        progress("closing", s.time)
+    # settling: the content at full size, forces off, the settling friction
+    model_c, c = _model(build, st, True, None, st.friction)
+    kin = asm.kinetic_energy(model_c, s.velocities, s.rotations)
+    while kin >= st.kinetic_tolerance and s.time < _settle_deadline(st, t_open, f0):
+        t_end = s.time + st.settle_chunk
+        r = simulate(model_c, t_end, dt_out=t_end - s.time, options=opt, state=s)
         s, steps = r.final_state, steps + r.stats["steps"]
-        kin = asm.kinetic_energy(model_b, s.velocities, s.rotations)
+        kin = asm.kinetic_energy(model_c, s.velocities, s.rotations)
         if progress:
             progress("settling", s.time)
-        if kin < st.kinetic_tolerance or s.time >= _settle_deadline(st, t_open, f0):
-            break
-        t_end = s.time + st.settle_chunk
     if kin >= st.kinetic_tolerance:
         raise AssemblyError(
             f"{build.spec.id}: not at rest after {st.max_settle_time} s of settling (kinetic "
             f"energy {kin:.3g} J >= {st.kinetic_tolerance:g} J)"
         )
-    n = model_b.node_count
+    n = model_c.node_count
     info = {
         "settings": asdict(st),
         # plain Python numbers: the info goes to JSON and must read back equal
@@ -279,5 +325,5 @@ def assemble(
         "packaging_mass_kg": float(c.packaging_mass),
         "content_mass_kg": float(c.content_mass),
     }
-    return Snapshot(build, model_b.positions0[:n].copy(), s.positions.copy(),
+    return Snapshot(build, model_c.positions0[:n].copy(), s.positions.copy(),
                     s.rotations.copy(), info)  # fmt: skip

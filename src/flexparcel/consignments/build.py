@@ -76,7 +76,7 @@ PRESET_ELEMENT_SIZE = {"KPBW": 0.010, "PB": 0.010, "KP": 0.010, "BW": 0.005}
 
 GLUED_STRIP_WIDTH = 0.010  # KP/BW, paper 3.1.1
 INITIAL_GAP = 2e-3  # top layer above the bottom one before the opening [m]
-FIT_CLEARANCE = 4e-3  # flat packaging >= content + content height + this [m]
+FIT_CLEARANCE = 4e-3  # flat packaging >= content + content height + this (at least) [m]
 CONTENT_EDGE_RADIUS = 3e-3  # rounded edges of the cardboard box contents [m]
 CONTENT_CLEARANCE = 0.2e-3  # content above the bottom layer's contact surface [m]
 GLUE_STRIPE = (0.6, 0.020)  # KP: stripe length (fraction of content length), width [m]
@@ -152,9 +152,20 @@ class ConsignmentBuild:
         """Length and width [m] of the flat packaging (without KP/BW's glued strip)."""
         s = self.spec
         strip = GLUED_STRIP_WIDTH if self.has_glued_strip else 0.0
-        need_l = (s.content_length_mm + s.content_height_mm) * 1e-3 + FIT_CLEARANCE
-        need_w = (s.content_width_mm + s.content_height_mm) * 1e-3 + FIT_CLEARANCE
+        need_l = (s.content_length_mm + s.content_height_mm) * 1e-3 + self.fit_clearance
+        need_w = (s.content_width_mm + s.content_height_mm) * 1e-3 + self.fit_clearance
         return max(s.length_mm * 1e-3 - strip, need_l), max(s.width_mm * 1e-3, need_w)
+
+    @property
+    def fit_clearance(self) -> float:
+        """Film [m] beyond the content's length (width) + height that a tight flat packaging
+        gets: FIT_CLEARANCE, or one element where that is more. Two flat rectangles cannot
+        wrap a box without excess film at its corners (the box's corners need double
+        curvature); a real film takes it up in mm-sized wrinkles, a shell mesh only in folds
+        of about one element. With 4 mm at 25 mm elements, KP's film could not close round
+        its grown content: the content pushed 4 mm into it and the settling stalled at 5 us
+        steps."""
+        return max(FIT_CLEARANCE, self.element_size)
 
     @property
     def has_glued_strip(self) -> bool:
@@ -258,8 +269,11 @@ def add_consignment(
         contact_nodes = ids
         if spec.content_fixed_to_packaging:
             gl, gw = GLUE_STRIPE[0] * lc, GLUE_STRIPE[1]
-            p = pts[bottom_ids]
-            inside = (np.abs(p[:, 0]) <= gl / 2 + 1e-9) & (np.abs(p[:, 1]) <= gw / 2 + 1e-9)
+            p = np.abs(pts[bottom_ids, :2])
+            # a stripe narrower than an element takes the row of nodes nearest its centre line
+            # (an odd number of elements across has no node row on it)
+            half = np.maximum((gl / 2, gw / 2), p.min(axis=0)) + 1e-9
+            inside = (p[:, 0] <= half[0]) & (p[:, 1] <= half[1])
             glue = ids[bottom_ids[inside & ~on_border[bottom_ids]]]
             if glue.size == 0:
                 raise ValueError(f"consignment {spec.id!r}: the glue stripe holds no node")

@@ -232,23 +232,27 @@ def kinetic_energy(model: Model, velocities: np.ndarray, rotations: np.ndarray) 
 
 def rigid_inertial_moments(model: Model, rotations, omega_dot, omega) -> np.ndarray:
     """Euler's equations in spatial form, d(J_s w)/dt = J_s w' + w x (J_s w), for every rigid
-    body, as a per-node array (n, 6) (zero outside the bodies' rotation rows)."""
+    body, plus the mass damping's moment alpha J_s w (``Model.mass_damping``: -alpha M v
+    acts on the translations through the nodal masses, and on a body's spin through its
+    inertia), as a per-node array (n, 6) (zero outside the bodies' rotation rows)."""
     out = np.zeros((model.node_count, 6))
+    alpha = model.mass_damping
     for k, node in enumerate(model.rigid_nodes):
         r = rotations[node]
         js = r @ model.rigid_inertia[k] @ r.T
         w = omega[node]
-        out[node, 3:] = js @ omega_dot[node] + np.cross(w, js @ w)
+        out[node, 3:] = js @ (omega_dot[node] + alpha * w) + np.cross(w, js @ w)
     return out
 
 
 def add_rigid_inertia_tangent(model: Model, data, rotations, omega, ca: float, cv: float):
-    """Add ``ca J_s + cv (W(w) J_s - W(J_s w))`` (derivative of the Euler terms through the
-    angular acceleration and velocity) to each free body's rotation block; the O(|dtheta|)
-    change of J_s with the rotation itself is left out (it vanishes as h -> 0)."""
+    """Add ``(ca + cv alpha) J_s + cv (W(w) J_s - W(J_s w))`` (derivative of the Euler and
+    mass-damping terms of :func:`rigid_inertial_moments` through the angular acceleration and
+    velocity) to each free body's rotation block; the O(|dtheta|) change of J_s with the
+    rotation itself is left out (it vanishes as h -> 0)."""
     for k, node in enumerate(model.rigid_nodes):
         r = rotations[node]
         js = r @ model.rigid_inertia[k] @ r.T
         w = omega[node]
-        blk = ca * js + cv * (skew(w) @ js - skew(js @ w))
+        blk = (ca + cv * model.mass_damping) * js + cv * (skew(w) @ js - skew(js @ w))
         np.add.at(data, model.rigid_rot_slots[k].ravel(), blk.ravel())

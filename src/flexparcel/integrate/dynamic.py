@@ -295,7 +295,7 @@ class GeneralizedAlpha:
         m = self.model
         fint, _ = asm.internal_forces(m, state.positions, state.rotations, state.velocities)
         fext = asm.external_forces(m, state.time, state.rotations)
-        rhs = fext - fint
+        rhs = fext - fint - m.mass_damping * m.mass * state.velocities
         qdd = np.zeros((m.node_count, 6))
         has_mass = m.mass > 0.0
         qdd[has_mass] = rhs[has_mass] / m.mass[has_mass]
@@ -303,7 +303,9 @@ class GeneralizedAlpha:
             r = state.rotations[node]
             js = r @ m.rigid_inertia[k] @ r.T
             w = state.velocities[node, 3:]
-            qdd[node, 3:] = np.linalg.solve(js, rhs[node, 3:] - np.cross(w, js @ w))
+            qdd[node, 3:] = np.linalg.solve(
+                js, rhs[node, 3:] - np.cross(w, js @ w) - m.mass_damping * js @ w
+            )
         qdd[m.fixed] = 0.0
         state.accelerations[:] = qdd
         self._alg = state.accelerations.copy()
@@ -545,6 +547,8 @@ class GeneralizedAlpha:
         ca = (1.0 - am) / ((1.0 - af) * b * h * h)
         cv = self.gamma / (b * h)
         t1 = s0.time + h
+        for group, xref_full, schedule in m.solid_growth:
+            m.solid_groups[group]["xref"] = np.ascontiguousarray(xref_full * schedule(t1))
         # predictor: translations with qdd_{n+1} = qdd_n; rotations at constant angular velocity,
         # because the nodal rotary inertia of a thin shell is tiny (rho t^3/12) and its
         # accelerations carry no useful trend (they are set by small moment imbalances)

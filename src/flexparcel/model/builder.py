@@ -122,6 +122,11 @@ class Model:
     """Rounded boxes whose size changes in time (the assembly grows a content into its
     packaging): (rigid node, outer half sizes (3,) [m], Schedule of the scale factor). Contact
     uses ``factor * outer - edge radius`` as the inner half sizes."""
+    solid_growth: list = field(default_factory=list)
+    """Solid element groups whose size changes in time (the assembly grows a flexible content
+    into its packaging): (index into ``solid_groups``, full-size ``xref`` (m, k, 3) [m],
+    Schedule of the scale factor). The integrator sets the group's ``xref`` to ``factor x
+    full-size`` at each step's end time, so the elements expand smoothly."""
     solid_groups: list = field(default_factory=list)
     """Solid element blocks: dicts with ``kind``, ``cells`` (m, k), ``kl``, ``xref``, ``grad``,
     ``beta`` (m,) and ``emap`` (m, 3k, 3k) CSR data slots (see flexparcel.elements.solid)."""
