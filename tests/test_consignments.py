@@ -230,6 +230,32 @@ def test_tight_envelopes_get_a_grown_content(name, scale):
     assert content_scale_for(ConsignmentBuild.of(name, element_size=0.025)) == scale
 
 
+def test_opening_force_doubles_from_its_start_pressure_up_to_the_cap():
+    from flexparcel.consignments.assembly import _opening_schedule
+
+    st = AssemblySettings()  # 1 Pa doubling every 10 ms, cap 5 kPa
+    f = _opening_schedule(st)
+    p = [st.opening_pressure * f(t) for t in (0.0, 0.01, 0.05, 0.1, 0.2)]
+    assert p == pytest.approx([1.0, 2.0, 32.0, 1024.0, 5000.0])
+    # never above the cap, never decreasing
+    ts = np.linspace(0.0, 0.3, 301)
+    v = np.array([f(t) for t in ts])
+    assert v.max() == pytest.approx(1.0) and np.all(np.diff(v) >= 0.0)
+
+
+def test_kp_glue_stripe_takes_the_nearest_node_rows_on_an_odd_mesh():
+    # KP at 25 mm: 11 elements across the 280 mm flat width put no node row within the 20 mm
+    # stripe; the two rows nearest the centre line (y = +-12.7 mm) carry the glue instead
+    build = ConsignmentBuild.of("KP", element_size=0.025)
+    b = ModelBuilder()
+    c = add_consignment(b, build)
+    model = b.finalize()
+    glued = np.flatnonzero(np.isin(np.arange(model.node_count), model.slave_nodes))
+    y = np.unique(np.round(model.positions0[glued, 1], 6))
+    assert y == pytest.approx([-0.0127273, 0.0127273], abs=1e-6)
+    assert c.content_body is not None
+
+
 def test_content_scale_out_of_range_is_refused():
     with pytest.raises(ValueError, match=r"content_scale must be in \[0.3, 1\]"):
         AssemblySettings(content_scale=0.2)

@@ -360,8 +360,8 @@ def _consignment_assembly(
     done = [r for r in rows if "error" not in r]
     return {
         "case": "consignment-assembly",
-        "description": "opening forces, content contact on, release, settle to rest "
-        "(flexparcel.consignments.assembly), per consignment",
+        "description": "opening forces, content contact on, release (and content growth), "
+        "settle to rest (flexparcel.consignments.assembly), per consignment",
         "rows": rows,
         "simulated_s": sum(r["simulated_s"] for r in done),
         "wall_s": sum(r["wall_s"] for r in rows),

@@ -1,18 +1,21 @@
 """Assembly of a consignment as in the paper (section 3.1.3), ending in a snapshot.
 
 1. Opening: equal and opposite uniform forces pull the top layer up and the bottom layer down
-   (growing linearly in time) while the packaging-content contact is off; the content sits in
-   the almost flat packaging. Gravity is off during the whole assembly (the paper's assembly
-   does not rest on anything either), so the content does not move.
-2. As soon as the opening clears the content by ``margin`` on both sides (checked every
-   ``check_every`` s), the contact is switched on and the forces are released over
-   ``release_time``: the packaging closes around the content.
-3. Settling: with mass-proportional damping (an assembly aid, :attr:`Model.mass_damping`) the
-   consignment comes to rest; the run stops when the kinetic energy is below
-   ``kinetic_tolerance`` or after ``max_settle_time``.
+   (growing geometrically in time, from 1 Pa) while the packaging-content contact is off; the
+   content sits in the almost flat packaging. Gravity is off during the whole assembly (the
+   paper's assembly does not rest on anything either), so the content does not move. A
+   content that nearly fills its packaging is opened round at ``content_scale`` of its size.
+2. Closing: as soon as the opening clears the content by ``margin`` on both sides (checked
+   every ``check_every`` s), the contact is switched on (frictionless) and the forces are
+   released over ``release_time``: the packaging closes around the content. A shrunk content
+   then grows back to full size over ``growth_time`` while a small pressure holds the layers
+   on it.
+3. Settling: with friction (``AssemblySettings.friction``) and mass-proportional damping (an
+   assembly aid, :attr:`Model.mass_damping`) the consignment comes to rest; the run stops when
+   the kinetic energy is below ``kinetic_tolerance`` or after ``max_settle_time``.
 
-The two phases are two models of the same mesh (node numbering is identical by construction);
-the state carries over. The result is a :class:`Snapshot` at rest.
+The three phases are three models of the same mesh (node numbering is identical by
+construction); the state carries over. The result is a :class:`Snapshot` at rest.
 """
 
 from __future__ import annotations
@@ -72,9 +75,10 @@ class AssemblySettings:
     ``opening_start_pressure``, doubling every ``opening_doubling_time``, up to this value,
     and stops growing as soon as the packaging is open (a flat envelope only opens by bending
     at its border and stretching, so the force needed depends strongly on the material and
-    the mesh; the ramp finds it: 4.5 kPa for KP/BW's bubble wrap at 25 mm, a few Pa for a
-    polybag). A linear ramp (25 kPa/s) threw PB's 55 g/m^2 film open at about 20 m/s: it
-    ballooned to +-48 mm and stayed so."""
+    the mesh; the ramp finds it: 5.0 kPa for KP/BW's bubble wrap at 25 mm, 0.5 kPa for KP's
+    kraft paper). The linear ramp used before (25 kPa/s) had reached 250 Pa when PB's
+    55 g/m^2 film opened, by then moving at some 20 m/s (impulse over areal density): the
+    film ballooned to +-48 mm and stayed so."""
     opening_start_pressure: float = 1.0
     opening_doubling_time: float = 0.01
     check_every: float = 0.005
@@ -103,9 +107,8 @@ class AssemblySettings:
     closing_pressure: float = 50.0
     """While a shrunk content grows back, the layers are pressed onto it with this pressure
     [Pa] (the opening force reversed), released over ``release_time`` before the growth
-    ends. Without it, a limp film left ballooned by the opening (PB at 25 mm: +-48 mm) does
-    not close by itself in the assembly's zero gravity; its seam, pulled inward by the
-    balloon, let the growing content's sides pass through it."""
+    ends: in the assembly's zero gravity nothing else closes a limp film left open. (It did
+    not cure PB's balloon at 25 mm, which came from the opening; see ``opening_pressure``.)"""
     friction: str = "stick"
     """Friction of the packaging-content and layer-on-layer contacts while the consignment
     settles: "stick" (the stick model, as in the tests; default), "regularised" (the paper's
