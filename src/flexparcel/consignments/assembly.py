@@ -77,8 +77,10 @@ class AssemblySettings:
     at its border and stretching, so the force needed depends strongly on the material and
     the mesh; the ramp finds it: 5.0 kPa for KP/BW's bubble wrap at 25 mm, 0.5 kPa for KP's
     kraft paper). The linear ramp used before (25 kPa/s) had reached 250 Pa when PB's
-    55 g/m^2 film opened, by then moving at some 20 m/s (impulse over areal density): the
-    film ballooned to +-48 mm and stayed so."""
+    55 g/m^2 film opened, by then moving at some 20 m/s (impulse over areal density), and the
+    film ended ballooned to +-48 mm; the slow start avoids throwing a light film open. (PB at
+    25 mm still does not assemble, and an experiment with 100x film mass in the opening and
+    closing ended in the same +-48 mm balloon, so the ramp is not its only cause.)"""
     opening_start_pressure: float = 1.0
     opening_doubling_time: float = 0.01
     check_every: float = 0.005
@@ -108,7 +110,7 @@ class AssemblySettings:
     """While a shrunk content grows back, the layers are pressed onto it with this pressure
     [Pa] (the opening force reversed), released over ``release_time`` before the growth
     ends: in the assembly's zero gravity nothing else closes a limp film left open. (It did
-    not cure PB's balloon at 25 mm, which came from the opening; see ``opening_pressure``.)"""
+    not cure PB's balloon at 25 mm; see ``opening_pressure``.)"""
     friction: str = "stick"
     """Friction of the packaging-content and layer-on-layer contacts while the consignment
     settles: "stick" (the stick model, as in the tests; default), "regularised" (the paper's
