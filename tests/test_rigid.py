@@ -103,3 +103,34 @@ def test_prescribed_motion_is_followed():
     np.testing.assert_allclose(r.positions[:, node, 0], r.time, atol=1e-12)
     np.testing.assert_allclose(r.rotation_vectors[-1, node], (0.0, 1.0, 0.0), atol=1e-12)
     assert r.positions[-1, free, 2] < 0.5  # the free one falls
+
+
+def test_rigid_inertia_tangent_matches_finite_differences():
+    # add_rigid_inertia_tangent adds ca dM/dw' + cv dM/dw of the Euler and mass-damping moments
+    # M = J_s (w' + alpha w) + w x J_s w (rigid_inertial_moments); central differences of M
+    # are exact to round-off for this quadratic in w (step 1e-6, tolerance 1e-7 of the block)
+    from flexparcel.integrate import assembly as asm
+
+    b = fp.ModelBuilder(gravity=(0.0, 0.0, 0.0), mass_damping=30.0)
+    node = b.add_rigid_body(RoundedBox(0.3, 0.2, 0.05, 0.01, density=500.0))
+    model = b.finalize()
+    rot = np.array([rotation_exp(np.array([0.3, -0.5, 0.8]))])
+    w = np.array([[0.7, -1.3, 2.1]])
+    wd = np.array([[4.0, 1.0, -2.0]])
+    slots = model.rigid_rot_slots[0]
+    for ca, cv, wrt in ((1.0, 0.0, "acc"), (0.0, 1.0, "vel")):
+        data = np.zeros(slots.max() + 1)
+        asm.add_rigid_inertia_tangent(model, data, rot, w, ca, cv)
+        block = data[slots]
+        fd = np.zeros((3, 3))
+        for j in range(3):
+            d = np.zeros((1, 3))
+            d[0, j] = 1e-6
+            if wrt == "acc":
+                hi = asm.rigid_inertial_moments(model, rot, wd + d, w)
+                lo = asm.rigid_inertial_moments(model, rot, wd - d, w)
+            else:
+                hi = asm.rigid_inertial_moments(model, rot, wd, w + d)
+                lo = asm.rigid_inertial_moments(model, rot, wd, w - d)
+            fd[:, j] = (hi[node, 3:] - lo[node, 3:]) / 2e-6
+        np.testing.assert_allclose(block, fd, atol=1e-7 * np.abs(fd).max())

@@ -282,21 +282,21 @@ def assemble(
             progress("opening", s.time)
     t_open = s.time
     t_closed = t_open + st.release_time
-    release = Schedule((t_open, t_closed), (opening(t_open), 0.0))
-    if f0 < 1.0:
-        t_grown = t_closed + st.growth_time
-        hold = max(t_closed + 0.5 * (t_grown - t_closed), t_grown - st.release_time)
-        press = -st.closing_pressure / st.opening_pressure
-        release = Schedule((t_open, t_closed, hold, t_grown), (opening(t_open), press, press, 0.0))
     # closing: release (and growth), frictionless (see AssemblySettings.friction)
-    model_b, c = _model(build, st, True, release, "none")
-    t_end = t_closed
     if f0 < 1.0:
-        # the content grows back once the forces are released, continuously: a jump would be a
-        # jump in penetration (rigid) or in the elements' strain (flexible)
-        _scale_content(model_b, c, None, Schedule((t_closed, t_closed + st.growth_time),
-                                                  (f0, 1.0)), xref_full)  # fmt: skip
+        # the content grows back once the forces are released, continuously (a jump would be a
+        # jump in penetration or in the elements' strain), the layers pressed onto it
         t_end = t_closed + st.growth_time
+        hold = max(t_closed + 0.5 * st.growth_time, t_end - st.release_time)
+        press = -st.closing_pressure / st.opening_pressure
+        release = Schedule((t_open, t_closed, hold, t_end), (opening(t_open), press, press, 0.0))
+        model_b, c = _model(build, st, True, release, "none")
+        growth = Schedule((t_closed, t_end), (f0, 1.0))
+        _scale_content(model_b, c, None, growth, xref_full)
+    else:
+        t_end = t_closed
+        release = Schedule((t_open, t_closed), (opening(t_open), 0.0))
+        model_b, c = _model(build, st, True, release, "none")
     r = simulate(model_b, t_end, dt_out=t_end - s.time, options=opt, state=s)
     s, steps = r.final_state, steps + r.stats["steps"]
     if progress:

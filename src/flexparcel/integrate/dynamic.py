@@ -299,13 +299,14 @@ class GeneralizedAlpha:
         qdd = np.zeros((m.node_count, 6))
         has_mass = m.mass > 0.0
         qdd[has_mass] = rhs[has_mass] / m.mass[has_mass]
+        if m.rigid_nodes.size:
+            # Euler's gyroscopic and mass-damping moments at zero angular acceleration
+            rhs -= asm.rigid_inertial_moments(
+                m, state.rotations, np.zeros_like(state.velocities[:, 3:]), state.velocities[:, 3:]
+            )
         for k, node in enumerate(m.rigid_nodes):
             r = state.rotations[node]
-            js = r @ m.rigid_inertia[k] @ r.T
-            w = state.velocities[node, 3:]
-            qdd[node, 3:] = np.linalg.solve(
-                js, rhs[node, 3:] - np.cross(w, js @ w) - m.mass_damping * js @ w
-            )
+            qdd[node, 3:] = np.linalg.solve(r @ m.rigid_inertia[k] @ r.T, rhs[node, 3:])
         qdd[m.fixed] = 0.0
         state.accelerations[:] = qdd
         self._alg = state.accelerations.copy()

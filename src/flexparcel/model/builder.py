@@ -854,7 +854,7 @@ class ModelBuilder:
             }
             for (kind, cells, ref, beta), smap in zip(self._solids, solid_maps, strict=True)
         ]
-        laws, law_index, csched = [], [], []
+        laws, csched = [], []
 
         def index_of(lst: list, item) -> int:
             if item not in lst:
@@ -889,7 +889,6 @@ class ModelBuilder:
             cpp.append(np.full(len(nodes), plane))
             cpl.append(np.full(len(nodes), li))
             cps.append(np.full(len(nodes), si))
-        del law_index
         cells = [(k, np.concatenate(v)) for k, v in self._cells.items()]
         return Model(
             positions0=pos0,
