@@ -349,6 +349,16 @@ def test_point_triangle_contact_sides():
     assert region == geo.TRI_EDGE_AB and sd == -1.0
     assert s == pytest.approx(h - np.linalg.norm(beside - cl))
     np.testing.assert_allclose(beside, cl + (h - s) * n, atol=1e-15)
+    # a remembered side holds only within the triangle's prism: a point that went round the
+    # edge to below the plane (a film wrapping a content's border) is 2.2 mm from the edge,
+    # not 2.2 mm + h deep, and is pushed away from the edge like the two-sided case
+    for side in (1, -1):
+        s, cl, _, n, region, sd = geo.point_triangle_contact(beside, a, b, c, h, side)
+        assert region == geo.TRI_EDGE_AB and sd == -1.0
+        assert s == pytest.approx(h - np.linalg.norm(beside - cl))
+        assert n @ (beside - cl) > 0
+    round_edge = np.array([0.05, -0.01, -0.02])  # 22 mm from the edge: out of reach
+    assert geo.point_triangle_contact(round_edge, a, b, c, h, 1)[0] < 0
     # derivatives: ds = -side d(dist)
     for side in (-1, 0, 1):
         for p in (above, below, beside):

@@ -33,7 +33,11 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flexparcel.contact.geometry import point_triangle, point_triangle_contact_derivs
+from flexparcel.contact.geometry import (
+    point_triangle,
+    point_triangle_contact_derivs,
+    side_used,
+)
 from flexparcel.contact.law import P_K_T, P_MAX_PEN, contact_friction, normal_force_packed
 
 __all__ = ["face_sides", "face_contact_forces", "edge_stations", "edge_face_forces"]
@@ -149,8 +153,8 @@ def _best_candidates(pairs, sides, points, tris, pos, thickness):
     for k in range(pairs.shape[0]):
         q = pairs[k, 0]
         t = tris[pairs[k, 1]]
-        dist = point_triangle(points[q], pos[t[0]], pos[t[1]], pos[t[2]])[0]
-        s = thickness - sides[k] * dist
+        dist, _, _, _, region = point_triangle(points[q], pos[t[0]], pos[t[1]], pos[t[2]])
+        s = thickness - side_used(int(sides[k]), dist, region) * dist
         if s > best_s[q]:
             best_s[q] = s
             best[q] = k

@@ -58,6 +58,7 @@ __all__ = [
     "point_triangle",
     "point_triangle_derivs",
     "point_triangle_contact",
+    "side_used",
     "point_triangle_contact_derivs",
     "segment_plane",
     "segment_segment",
@@ -607,6 +608,24 @@ def point_triangle_derivs(p, a, b, c):
 
 
 @nb.njit(cache=True)
+def side_used(side, dist, region):
+    """The side (+1.0/-1.0) a contact pushes a point to: ``side`` (the remembered side, see
+    :func:`point_triangle_contact`) while the point's projection falls inside the triangle
+    (``region`` :data:`TRI_FACE`), else the side it is on now (sign of ``dist``).
+
+    Outside the triangle's prism a change of side means the point went *round* the
+    triangle's edge, not through it: a film wrapping round a content's edge passes below the
+    plane of the top face's border triangles, at a distance |p - closest| from them, and
+    counting that as a penetration of ``thickness + |p - closest|`` (17 mm on PB's wrapping film
+    at 25 mm) threw its Newton iterations off. A point that does pass through a surface is in
+    the face region of the triangle it crossed, which the deepest-candidate rule then picks.
+    """
+    if side == 0 or region != TRI_FACE:
+        return 1.0 if dist >= 0.0 else -1.0
+    return float(side)
+
+
+@nb.njit(cache=True)
 def point_triangle_contact(p, a, b, c, thickness, side):
     """Node-to-face contact of a point against a triangle with a contact thickness.
 
@@ -617,7 +636,8 @@ def point_triangle_contact(p, a, b, c, thickness, side):
 
     * ``side = +1``: one-sided, the +n_t side (``a, b, c`` counter-clockwise seen from outside) is
       free: solid faces and rigid meshes with outward normals, ``thickness`` = the point's radius.
-      Points below the face get ``s > thickness`` and are pushed back out along +n_t.
+      Points below the face, within its prism, get ``s > thickness`` and are pushed back out
+      along +n_t; outside the prism the side is the point's current one (:func:`side_used`).
     * ``side = -1``: one-sided, the other side is free.
     * ``side = 0``: two-sided thin shell: ``side_used`` is the side ``p`` is on now (``+1`` in the
       plane), ``thickness`` = half the shell's contact thickness plus the point's radius; points
@@ -632,9 +652,7 @@ def point_triangle_contact(p, a, b, c, thickness, side):
         (s [m], closest (3,), bary (3,), n (3,), region, side_used (+1.0 or -1.0)).
     """
     dist, closest, bary, normal, region = point_triangle(p, a, b, c)
-    sd = float(side)
-    if side == 0:
-        sd = 1.0 if dist >= 0.0 else -1.0
+    sd = side_used(side, dist, region)
     return thickness - sd * dist, closest, bary, sd * normal, region, sd
 
 
@@ -649,9 +667,7 @@ def point_triangle_contact_derivs(p, a, b, c, thickness, side):
         dbary_dX (3, 12)).
     """
     dist, closest, bary, normal, region, ddist, dnorm, dbary = point_triangle_derivs(p, a, b, c)
-    sd = float(side)
-    if side == 0:
-        sd = 1.0 if dist >= 0.0 else -1.0
+    sd = side_used(side, dist, region)
     return (
         thickness - sd * dist,
         closest,
