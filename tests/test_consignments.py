@@ -292,3 +292,21 @@ def test_rebound_is_the_first_bounce_even_if_it_sinks_lower_afterwards():
     # still sinking at the end: no bounce
     pos[:, 0, 2] = np.array([5.0, 3.0, 2.0, 1.5, 1.2, 1.0]) * 1e-3
     assert rebound_height(model, res, c) == 0.0
+
+
+def test_closing_holds_the_layers_centre_nodes_in_plane_only():
+    # the closing model holds the top and the bottom layer's centre node in x and y (a
+    # frictionless film must not slide along its growing content), nothing else
+    from flexparcel.consignments import assembly as asm_mod
+
+    build = ConsignmentBuild.of("PB", element_size=0.025)
+    st = AssemblySettings()
+    free, c = asm_mod._model(build, st, True, None, "none")
+    held = asm_mod._centre_nodes(free, c)
+    assert held[0] in c.top and held[1] in c.bottom
+    for node in held:  # nearest the flat packaging's centre: within one element
+        assert np.linalg.norm(free.positions0[node, :2]) < 0.025
+    model, _ = asm_mod._model(build, st, True, None, "none", held)
+    added = model.fixed & ~free.fixed  # (solid nodes' rotations are held in both)
+    assert added.sum() == 4 and not (free.fixed & ~model.fixed).any()
+    assert added[held][:, :2].all() and not added[held][:, 2:].any()

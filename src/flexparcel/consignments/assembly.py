@@ -115,6 +115,9 @@ class AssemblySettings:
     [Pa] (the opening force reversed), released over ``release_time`` before the growth
     ends: in the assembly's zero gravity nothing else closes a limp film left open. (It did
     not cure PB's balloon at 25 mm; see ``opening_pressure``.)"""
+    hold_film_centre: bool = True
+    """Hold the top and bottom layers' centre nodes in x and y during the closing (see
+    :func:`assemble`)."""
     friction: str = "stick"
     """Friction of the packaging-content and layer-on-layer contacts while the consignment
     settles: "stick" (the stick model, as in the tests; default), "regularised" (the paper's
@@ -136,7 +139,7 @@ class AssemblySettings:
                 f"got {self.friction!r}"
             )
         for k, v in asdict(self).items():
-            if (k == "content_scale" and v is None) or k == "friction":
+            if (k == "content_scale" and v is None) or k in ("friction", "hold_film_centre"):
                 continue
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"AssemblySettings.{k} must be > 0, got {v!r}")
@@ -147,10 +150,11 @@ class AssemblySettings:
 
 
 def _model(build: ConsignmentBuild, settings: AssemblySettings, contact: bool,
-           forces: Schedule | None, friction: str) -> tuple[Model, Consignment]:  # fmt: skip
+           forces: Schedule | None, friction: str,
+           hold: np.ndarray | None = None) -> tuple[Model, Consignment]:  # fmt: skip
     """The assembly model: no gravity, mass damping, the content contact on or off with
     ``friction`` (see :func:`_assembly_law`), opening forces on the layers by ``forces``
-    (None: none)."""
+    (None: none), nodes ``hold`` held in x and y (None: none)."""
     b = ModelBuilder(gravity=(0.0, 0.0, 0.0), mass_damping=settings.mass_damping)
     c = add_consignment(
         b,
@@ -163,7 +167,18 @@ def _model(build: ConsignmentBuild, settings: AssemblySettings, contact: bool,
         total = settings.opening_pressure * length * width
         b.add_force(c.top, (0.0, 0.0, total / len(c.top)), schedule=forces)
         b.add_force(c.bottom, (0.0, 0.0, -total / len(c.bottom)), schedule=forces)
+    if hold is not None:
+        b.fix(hold, ["x", "y"])
     return b.finalize(), c
+
+
+def _centre_nodes(model: Model, c: Consignment) -> np.ndarray:
+    """The top and the bottom layer's node nearest the packaging's centre (in x, y)."""
+    out = []
+    for ids in (c.top, c.bottom):
+        p = model.positions0[ids, :2]
+        out.append(ids[np.argmin(np.sum((p - p.mean(axis=0)) ** 2, axis=1))])
+    return np.array(out)
 
 
 def _opening_schedule(st: AssemblySettings) -> Schedule:
@@ -290,6 +305,11 @@ def assemble(
             progress("opening", s.time)
     t_open = s.time
     t_closed = t_open + st.release_time
+    # while it closes, nothing holds a frictionless film on its content in the plane: PB's
+    # film at 25 mm slid 35 mm along its growing content and turned by 10 degrees, and the
+    # content came out through a seam. Its layers' centre nodes are held in x and y until
+    # the settling (the opening pulls them straight up: they have not moved in the plane)
+    held = _centre_nodes(model_a, c) if st.hold_film_centre else None
     # closing: release (and growth), frictionless (see AssemblySettings.friction)
     if f0 < 1.0:
         # the content grows back once the forces are released, continuously (a jump would be a
@@ -298,13 +318,13 @@ def assemble(
         hold = max(t_closed + 0.5 * st.growth_time, t_end - st.release_time)
         press = -st.closing_pressure / st.opening_pressure
         release = Schedule((t_open, t_closed, hold, t_end), (opening(t_open), press, press, 0.0))
-        model_b, c = _model(build, st, True, release, "none")
+        model_b, c = _model(build, st, True, release, "none", held)
         growth = Schedule((t_closed, t_end), (f0, 1.0))
         _scale_content(model_b, c, None, growth, xref_full)
     else:
         t_end = t_closed
         release = Schedule((t_open, t_closed), (opening(t_open), 0.0))
-        model_b, c = _model(build, st, True, release, "none")
+        model_b, c = _model(build, st, True, release, "none", held)
     r = simulate(model_b, t_end, dt_out=t_end - s.time, options=opt, state=s)
     s, steps = r.final_state, steps + r.stats["steps"]
     if progress:
