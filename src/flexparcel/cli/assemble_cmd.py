@@ -57,6 +57,9 @@ def run(args: argparse.Namespace) -> int:
         snap, files = assemble_job(build, args.out, progress=not args.no_progress)
     except AssemblyError as exc:
         print(f"flexparcel assemble: assembly failed: {exc}", file=sys.stderr)
+        if exc.unsettled is not None:
+            print(f"its last state: {args.out / 'unsettled.npz'}, {args.out / 'unsettled.png'}",
+                  file=sys.stderr)  # fmt: skip
         return 1
     info = snap.info
     print(

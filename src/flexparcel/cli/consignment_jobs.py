@@ -159,9 +159,11 @@ def assemble_job(
     build: ConsignmentBuild, out: Path, *, progress: bool = True
 ) -> tuple[Snapshot, JobFiles]:
     """Assemble ``build`` and write the snapshot, ``assembly.json``, a picture and ParaView
-    files of the settled state into ``out``."""
+    files of the settled state into ``out``. A consignment that does not come to rest raises
+    :class:`AssemblyError` after its last state is written to ``out/unsettled.npz`` and
+    ``out/unsettled.png`` (for diagnosis; no test starts from it)."""
     from flexparcel.cli.progress import PhaseLine
-    from flexparcel.consignments.assembly import assemble
+    from flexparcel.consignments.assembly import AssemblyError, assemble
     from flexparcel.consignments.snapshot import save_snapshot
     from flexparcel.elements.rotations import rotation_vectors
     from flexparcel.io.paraview import write_paraview, write_paraview_boxes
@@ -173,6 +175,15 @@ def assemble_job(
     line = PhaseLine(f"assemble {build.spec.id}", enabled=progress)
     try:
         snap = assemble(build, progress=line)
+    except AssemblyError as exc:
+        if exc.unsettled is not None:
+            save_snapshot(exc.unsettled, out / "unsettled.npz")
+            model, _ = _consignment_model(build)
+            plot_consignment_views(
+                out / "unsettled.png", exc.unsettled.positions, model.cells, boxes=[],
+                title=f"{build.spec.id} not at rest ({build.element_size * 1e3:g} mm elements)",
+            )  # fmt: skip
+        raise
     finally:
         line.done()
     files = JobFiles(out, out / "assembly.json")

@@ -62,7 +62,13 @@ def _assembly_law(friction: str) -> ContactLaw:
 
 
 class AssemblyError(RuntimeError):
-    """The packaging could not be opened or did not come to rest."""
+    """The packaging could not be opened or did not come to rest. ``unsettled``: the state
+    at the end of the settling (a :class:`Snapshot`, ``info["at_rest"]`` False) when the
+    consignment did not come to rest, else None."""
+
+    def __init__(self, message: str, unsettled: Snapshot | None = None) -> None:
+        super().__init__(message)
+        self.unsettled = unsettled
 
 
 @dataclass(frozen=True)
@@ -339,11 +345,6 @@ def assemble(
         kin = asm.kinetic_energy(model_c, s.velocities, s.rotations)
         if progress:
             progress("settling", s.time)
-    if kin >= st.kinetic_tolerance:
-        raise AssemblyError(
-            f"{build.spec.id}: not at rest after {st.max_settle_time} s of settling (kinetic "
-            f"energy {kin:.3g} J >= {st.kinetic_tolerance:g} J)"
-        )
     n = model_c.node_count
     info = {
         "settings": asdict(st),
@@ -357,6 +358,14 @@ def assemble(
         "wall_s": time.perf_counter() - wall0,
         "packaging_mass_kg": float(c.packaging_mass),
         "content_mass_kg": float(c.content_mass),
+        "at_rest": bool(kin < st.kinetic_tolerance),
     }
-    return Snapshot(build, model_c.positions0[:n].copy(), s.positions.copy(),
+    snap = Snapshot(build, model_c.positions0[:n].copy(), s.positions.copy(),
                     s.rotations.copy(), info)  # fmt: skip
+    if not info["at_rest"]:
+        raise AssemblyError(
+            f"{build.spec.id}: not at rest after {st.max_settle_time} s of settling (kinetic "
+            f"energy {kin:.3g} J >= {st.kinetic_tolerance:g} J)",
+            unsettled=snap,
+        )
+    return snap
