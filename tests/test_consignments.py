@@ -295,18 +295,24 @@ def test_rebound_is_the_first_bounce_even_if_it_sinks_lower_afterwards():
 
 
 def test_closing_holds_the_layers_centre_nodes_in_plane_only():
-    # the closing model holds the top and the bottom layer's centre node in x and y (a
-    # frictionless film must not slide along its growing content), nothing else
+    # the closing model holds the top and the bottom layer's centre node in x and y, and one
+    # more node of each on its centre line in y (a frictionless film must neither slide nor
+    # turn on its growing content), nothing else
     from flexparcel.consignments import assembly as asm_mod
 
     build = ConsignmentBuild.of("PB", element_size=0.025)
     st = AssemblySettings()
     free, c = asm_mod._model(build, st, True, None, "none")
-    held = asm_mod._centre_nodes(free, c)
-    assert held[0] in c.top and held[1] in c.bottom
-    for node in held:  # nearest the flat packaging's centre: within one element
-        assert np.linalg.norm(free.positions0[node, :2]) < 0.025
-    model, _ = asm_mod._model(build, st, True, None, "none", held)
+    centre, along = asm_mod._centre_nodes(free, c)
+    assert centre[0] in c.top and centre[1] in c.bottom
+    assert along[0] in c.top and along[1] in c.bottom
+    length = build.flat_size[0]
+    for a, b in zip(centre, along, strict=True):  # within one element of where they belong
+        assert np.linalg.norm(free.positions0[a, :2]) < 0.025
+        assert abs(free.positions0[b, 0] - free.positions0[a, 0] - 0.4 * length) < 0.025
+        assert abs(free.positions0[b, 1]) < 0.025
+    model, _ = asm_mod._model(build, st, True, None, "none", (centre, along))
     added = model.fixed & ~free.fixed  # (solid nodes' rotations are held in both)
-    assert added.sum() == 4 and not (free.fixed & ~model.fixed).any()
-    assert added[held][:, :2].all() and not added[held][:, 2:].any()
+    assert added.sum() == 6 and not (free.fixed & ~model.fixed).any()
+    assert added[centre][:, :2].all() and not added[centre][:, 2:].any()
+    assert added[along][:, 1].all() and not added[along][:, [0, 2, 3, 4, 5]].any()

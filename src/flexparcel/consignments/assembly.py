@@ -122,8 +122,8 @@ class AssemblySettings:
     ends: in the assembly's zero gravity nothing else closes a limp film left open. (It did
     not cure PB's balloon at 25 mm; see ``opening_pressure``.)"""
     hold_film_centre: bool = True
-    """Hold the top and bottom layers' centre nodes in x and y during the closing (see
-    :func:`assemble`)."""
+    """Hold the top and bottom layers' centre nodes in x and y, and one more node of each on
+    its centre line in y, during the closing (see :func:`assemble`)."""
     friction: str = "stick"
     """Friction of the packaging-content and layer-on-layer contacts while the consignment
     settles: "stick" (the stick model, as in the tests; default), "regularised" (the paper's
@@ -157,10 +157,11 @@ class AssemblySettings:
 
 def _model(build: ConsignmentBuild, settings: AssemblySettings, contact: bool,
            forces: Schedule | None, friction: str,
-           hold: np.ndarray | None = None) -> tuple[Model, Consignment]:  # fmt: skip
+           hold: tuple[np.ndarray, np.ndarray] | None = None
+           ) -> tuple[Model, Consignment]:  # fmt: skip
     """The assembly model: no gravity, mass damping, the content contact on or off with
     ``friction`` (see :func:`_assembly_law`), opening forces on the layers by ``forces``
-    (None: none), nodes ``hold`` held in x and y (None: none)."""
+    (None: none), nodes ``hold[0]`` held in x and y and ``hold[1]`` in y (None: none)."""
     b = ModelBuilder(gravity=(0.0, 0.0, 0.0), mass_damping=settings.mass_damping)
     c = add_consignment(
         b,
@@ -174,17 +175,23 @@ def _model(build: ConsignmentBuild, settings: AssemblySettings, contact: bool,
         b.add_force(c.top, (0.0, 0.0, total / len(c.top)), schedule=forces)
         b.add_force(c.bottom, (0.0, 0.0, -total / len(c.bottom)), schedule=forces)
     if hold is not None:
-        b.fix(hold, ["x", "y"])
+        b.fix(hold[0], ["x", "y"])
+        b.fix(hold[1], ["y"])
     return b.finalize(), c
 
 
-def _centre_nodes(model: Model, c: Consignment) -> np.ndarray:
-    """The top and the bottom layer's node nearest the packaging's centre (in x, y)."""
-    out = []
+def _centre_nodes(model: Model, c: Consignment) -> tuple[np.ndarray, np.ndarray]:
+    """The top and the bottom layer's node nearest the packaging's centre (to be held in x and
+    y), and each layer's node nearest the point 40 % of the layer's length further along x
+    (held in y: with the first, it keeps the layer from turning about z)."""
+    centre, along = [], []
     for ids in (c.top, c.bottom):
         p = model.positions0[ids, :2]
-        out.append(ids[np.argmin(np.sum((p - p.mean(axis=0)) ** 2, axis=1))])
-    return np.array(out)
+        mid = p.mean(axis=0)
+        centre.append(ids[np.argmin(np.sum((p - mid) ** 2, axis=1))])
+        far = mid + (0.4 * np.ptp(p[:, 0]), 0.0)
+        along.append(ids[np.argmin(np.sum((p - far) ** 2, axis=1))])
+    return np.array(centre), np.array(along)
 
 
 def _opening_schedule(st: AssemblySettings) -> Schedule:
@@ -313,8 +320,10 @@ def assemble(
     t_closed = t_open + st.release_time
     # while it closes, nothing holds a frictionless film on its content in the plane: PB's
     # film at 25 mm slid 35 mm along its growing content and turned by 10 degrees, and the
-    # content came out through a seam. Its layers' centre nodes are held in x and y until
-    # the settling (the opening pulls them straight up: they have not moved in the plane)
+    # content came out through a seam; held at its centre node only, it turned by 10 degrees
+    # about it. Its layers' centre nodes are held in x and y, and a node of each on the centre
+    # line in y, until the settling (the opening pulls them straight up: they have not moved
+    # in the plane)
     held = _centre_nodes(model_a, c) if st.hold_film_centre else None
     # closing: release (and growth), frictionless (see AssemblySettings.friction)
     if f0 < 1.0:
