@@ -261,6 +261,8 @@ def test_content_scale_out_of_range_is_refused():
         AssemblySettings(content_scale=0.2)
     with pytest.raises(ValueError, match=r"friction must be one of none, regularised, stick"):
         AssemblySettings(friction="coulomb")
+    with pytest.raises(ValueError, match=r"hold_film_centre must be true or false, got 'no'"):
+        AssemblySettings(hold_film_centre="no")
 
 
 def test_assembly_grows_a_shrunk_content_back_without_penetration():
@@ -303,7 +305,7 @@ def test_closing_holds_the_layers_centre_nodes_in_plane_only():
     build = ConsignmentBuild.of("PB", element_size=0.025)
     st = AssemblySettings()
     free, c = asm_mod._model(build, st, True, None, "none")
-    centre, along = asm_mod._centre_nodes(free, c)
+    centre, along = asm_mod._held_nodes(free, c)
     assert centre[0] in c.top and centre[1] in c.bottom
     assert along[0] in c.top and along[1] in c.bottom
     length = build.flat_size[0]

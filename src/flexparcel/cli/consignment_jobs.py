@@ -155,6 +155,24 @@ def _boxes(c: Consignment, positions: np.ndarray, rotation: np.ndarray | None) -
     return [Box(positions[c.content_body], rotation, c.content_box)]
 
 
+def _content_boxes(c: Consignment, snap: Snapshot) -> list:
+    """The rigid content of ``snap`` as a drawable box (empty for a flexible content)."""
+    body = c.content_body
+    return _boxes(c, snap.positions, None if body is None else snap.rotations[body])
+
+
+def _snapshot_picture(path: Path, snap: Snapshot, state: str, model, c: Consignment) -> Path:
+    """Top and side views of ``snap`` (the cells of ``model``, the content of ``c``, from
+    :func:`_consignment_model`) titled "<id> <state> (<size> mm elements)"; returns ``path``."""
+    from flexparcel.viz.consignment import plot_consignment_views
+
+    build = snap.build
+    return plot_consignment_views(
+        path, snap.positions, model.cells, boxes=_content_boxes(c, snap),
+        title=f"{build.spec.id} {state} ({build.element_size * 1e3:g} mm elements)",
+    )  # fmt: skip
+
+
 def assemble_job(
     build: ConsignmentBuild, out: Path, *, progress: bool = True
 ) -> tuple[Snapshot, JobFiles]:
@@ -168,7 +186,6 @@ def assemble_job(
     from flexparcel.elements.rotations import rotation_vectors
     from flexparcel.io.paraview import write_paraview, write_paraview_boxes
     from flexparcel.simulate import SimulationResult
-    from flexparcel.viz.consignment import plot_consignment_views
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -178,11 +195,8 @@ def assemble_job(
     except AssemblyError as exc:
         if exc.unsettled is not None:
             save_snapshot(exc.unsettled, out / "unsettled.npz")
-            model, _ = _consignment_model(build)
-            plot_consignment_views(
-                out / "unsettled.png", exc.unsettled.positions, model.cells, boxes=[],
-                title=f"{build.spec.id} not at rest ({build.element_size * 1e3:g} mm elements)",
-            )  # fmt: skip
+            model, c = _consignment_model(build)
+            _snapshot_picture(out / "unsettled.png", exc.unsettled, "not at rest", model, c)
         raise
     finally:
         line.done()
@@ -200,17 +214,13 @@ def assemble_job(
         final_state=snap.state(),
     )
     files.paraview = write_paraview(out / "paraview", frame, model, name="assembled")
-    body = c.content_body
-    boxes = _boxes(c, snap.positions, None if body is None else snap.rotations[body])
+    boxes = _content_boxes(c, snap)
     if boxes:
         files.paraview_content = write_paraview_boxes(
             out / "paraview", [0.0], [[boxes[0].centre]], [[boxes[0].rotation]],
             [c.content_box], name="assembled_content",
         )  # fmt: skip
-    files.picture = plot_consignment_views(
-        out / "assembled.png", snap.positions, model.cells, boxes=boxes,
-        title=f"{build.spec.id} assembled ({build.element_size * 1e3:g} mm elements)",
-    )  # fmt: skip
+    files.picture = _snapshot_picture(out / "assembled.png", snap, "assembled", model, c)
     extent = snap.positions[c.packaging].max(axis=0) - snap.positions[c.packaging].min(axis=0)
     summary = {
         "consignment": build.spec.id,

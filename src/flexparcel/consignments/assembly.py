@@ -9,7 +9,7 @@
    every ``check_every`` s), the contact is switched on (frictionless) and the forces are
    released over ``release_time``: the packaging closes around the content. A shrunk content
    then grows back to full size over ``growth_time`` while a small pressure holds the layers
-   on it.
+   on it. Each layer is held in the plane at two nodes (``hold_film_centre``).
 3. Settling: with friction (``AssemblySettings.friction``) and mass-proportional damping (an
    assembly aid, :attr:`Model.mass_damping`) the consignment comes to rest; the run stops when
    the kinetic energy is below ``kinetic_tolerance`` or after ``max_settle_time``.
@@ -84,9 +84,9 @@ class AssemblySettings:
     the mesh; the ramp finds it: 5.0 kPa for KP/BW's bubble wrap at 25 mm, 0.5 kPa for KP's
     kraft paper). The linear ramp used before (25 kPa/s) had reached 250 Pa when PB's
     55 g/m^2 film opened, by then moving at some 20 m/s (impulse over areal density), and the
-    film ended ballooned to +-48 mm; the slow start avoids throwing a light film open. (PB at
-    25 mm still does not assemble, and an experiment with 100x film mass in the opening and
-    closing ended in the same +-48 mm balloon, so the ramp is not its only cause.)"""
+    film ended ballooned to +-48 mm; the slow start avoids throwing a light film open. (An
+    experiment with 100x film mass also ballooned; the balloon went only with the wrap-round
+    contact fix of :func:`flexparcel.contact.geometry.side_used`.)"""
     opening_start_pressure: float = 1.0
     opening_doubling_time: float = 0.01
     check_every: float = 0.005
@@ -119,11 +119,14 @@ class AssemblySettings:
     closing_pressure: float = 50.0
     """While a shrunk content grows back, the layers are pressed onto it with this pressure
     [Pa] (the opening force reversed), released over ``release_time`` before the growth
-    ends: in the assembly's zero gravity nothing else closes a limp film left open. (It did
-    not cure PB's balloon at 25 mm; see ``opening_pressure``.)"""
+    ends: in the assembly's zero gravity nothing else closes a limp film left open."""
     hold_film_centre: bool = True
     """Hold the top and bottom layers' centre nodes in x and y, and one more node of each on
-    its centre line in y, during the closing (see :func:`assemble`)."""
+    its centre line in y, during the closing; they are released for the settling (the
+    opening pulls them straight up, so they have not moved in the plane). In the
+    frictionless closing nothing else holds a film in the plane on its growing content: PB's
+    film at 25 mm slid 35 mm and turned by 10 degrees, and the content came out through a
+    seam; held at its centre node only, it still turned by 10 degrees about it."""
     friction: str = "stick"
     """Friction of the packaging-content and layer-on-layer contacts while the consignment
     settles: "stick" (the stick model, as in the tests; default), "regularised" (the paper's
@@ -145,7 +148,11 @@ class AssemblySettings:
                 f"got {self.friction!r}"
             )
         for k, v in asdict(self).items():
-            if (k == "content_scale" and v is None) or k in ("friction", "hold_film_centre"):
+            if (k == "content_scale" and v is None) or k == "friction":
+                continue
+            if k == "hold_film_centre":
+                if not isinstance(v, bool):
+                    raise ValueError(f"AssemblySettings.{k} must be true or false, got {v!r}")
                 continue
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"AssemblySettings.{k} must be > 0, got {v!r}")
@@ -180,7 +187,7 @@ def _model(build: ConsignmentBuild, settings: AssemblySettings, contact: bool,
     return b.finalize(), c
 
 
-def _centre_nodes(model: Model, c: Consignment) -> tuple[np.ndarray, np.ndarray]:
+def _held_nodes(model: Model, c: Consignment) -> tuple[np.ndarray, np.ndarray]:
     """The top and the bottom layer's node nearest the packaging's centre (to be held in x and
     y), and each layer's node nearest the point 40 % of the layer's length further along x
     (held in y: with the first, it keeps the layer from turning about z)."""
@@ -318,21 +325,16 @@ def assemble(
             progress("opening", s.time)
     t_open = s.time
     t_closed = t_open + st.release_time
-    # while it closes, nothing holds a frictionless film on its content in the plane: PB's
-    # film at 25 mm slid 35 mm along its growing content and turned by 10 degrees, and the
-    # content came out through a seam; held at its centre node only, it turned by 10 degrees
-    # about it. Its layers' centre nodes are held in x and y, and a node of each on the centre
-    # line in y, until the settling (the opening pulls them straight up: they have not moved
-    # in the plane)
-    held = _centre_nodes(model_a, c) if st.hold_film_centre else None
+    held = _held_nodes(model_a, c) if st.hold_film_centre else None  # see hold_film_centre
     # closing: release (and growth), frictionless (see AssemblySettings.friction)
     if f0 < 1.0:
         # the content grows back once the forces are released, continuously (a jump would be a
         # jump in penetration or in the elements' strain), the layers pressed onto it
         t_end = t_closed + st.growth_time
-        hold = max(t_closed + 0.5 * st.growth_time, t_end - st.release_time)
+        t_pressed = max(t_closed + 0.5 * st.growth_time, t_end - st.release_time)
         press = -st.closing_pressure / st.opening_pressure
-        release = Schedule((t_open, t_closed, hold, t_end), (opening(t_open), press, press, 0.0))
+        release = Schedule((t_open, t_closed, t_pressed, t_end),
+                           (opening(t_open), press, press, 0.0))  # fmt: skip
         model_b, c = _model(build, st, True, release, "none", held)
         growth = Schedule((t_closed, t_end), (f0, 1.0))
         _scale_content(model_b, c, None, growth, xref_full)
