@@ -263,6 +263,9 @@ def test_content_scale_out_of_range_is_refused():
         AssemblySettings(friction="coulomb")
     with pytest.raises(ValueError, match=r"hold_film_centre must be true or false, got 'no'"):
         AssemblySettings(hold_film_centre="no")
+    with pytest.raises(ValueError, match=r"settle_rho_inf must be in \[0, 1\], got 1.5"):
+        AssemblySettings(settle_rho_inf=1.5)
+    assert AssemblySettings(settle_rho_inf=0.0).settle_rho_inf == 0.0  # 0 is allowed
 
 
 def test_assembly_grows_a_shrunk_content_back_without_penetration():
