@@ -136,3 +136,26 @@ def test_pardiso_backend_gives_the_same_motion():
         model, 0.05, dt_out=0.05, options=fp.IntegratorOptions(linear_solver="pardiso")
     )
     assert np.abs(r1.positions[-1] - r0.positions[-1]).max() < 1e-8
+
+
+@pytest.mark.parametrize("growth", [1.05, 1.02])
+def test_step_cap_after_a_newton_failure_regrows_by_the_option(growth):
+    # after a Newton failure the step is capped; each accepted step lets the cap grow by
+    # newton_cap_growth (the conveyor scenes use 1.02: PB's film keeps Newton's reach put)
+    from flexparcel.integrate.dynamic import GeneralizedAlpha
+
+    model, _ = _paper_sheet(4)
+    integ = GeneralizedAlpha(model, fp.IntegratorOptions(newton_cap_growth=growth))
+    s = model.initial_state()
+    integ.initialize(s)
+    integ._h_cap = 2e-4  # as left by a failure at h = 2.7e-4
+    integ.h = 1e-4
+    s = integ.step(s, 1.0)
+    assert integ._h_cap == pytest.approx(2e-4 * growth)
+    assert integ.h <= 2e-4 * growth  # the next step respects the cap
+
+
+def test_newton_cap_growth_out_of_range_is_refused():
+    for bad in (1.0, 0.9, 3.0, float("nan")):
+        with pytest.raises(ValueError, match=r"newton_cap_growth must be in \(1, 2\]"):
+            fp.IntegratorOptions(newton_cap_growth=bad)

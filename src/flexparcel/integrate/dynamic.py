@@ -75,6 +75,12 @@ class IntegratorOptions:
     """Newton stops when its estimated remaining error is below newton_tol * tol_displacement
     (and the rotation correction times the element size as well)."""
     max_newton: int = 12
+    newton_cap_growth: float = 1.05
+    """After a Newton failure at step h, steps are capped at 0.75 h; the cap then grows by
+    this factor per accepted step (Newton's reach, unlike the error estimate, is not
+    predicted by the step controller). A failed step costs up to ``max_newton`` iterations,
+    so where the reach stays put, a slower regrowth pays: see the conveyor's options
+    (:func:`flexparcel.scenarios.conveyor_scene.conveyor_options`)."""
     reuse_factorization: bool = False
     """Keep the factorisation across iterations and steps while Newton contracts well
     (modified Newton). Measured on the sheet swing it forces smaller steps and costs more than
@@ -132,6 +138,9 @@ class IntegratorOptions:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"IntegratorOptions.{name} must be > 0, got {v!r}")
+        g = self.newton_cap_growth
+        if not (isinstance(g, int | float) and 1.0 < g <= 2.0):
+            raise ValueError(f"IntegratorOptions.newton_cap_growth must be in (1, 2], got {g!r}")
         if self.dt_min > self.dt_max:
             raise ValueError("IntegratorOptions.dt_min must be <= dt_max")
         if self.max_newton < 1:
@@ -753,7 +762,7 @@ class GeneralizedAlpha:
                 self._h_cap = 0.75 * h
                 self._tangent = None  # retry from a fresh tangent
                 continue
-            self._h_cap *= 1.05
+            self._h_cap *= self.opt.newton_cap_growth
             s1, qdd, a1, _ = out
             if self._impact_w2 > 0.0:
                 # resolve impacts: a contact that closes or opens faster than impact_speed must
