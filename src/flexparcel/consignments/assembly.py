@@ -10,9 +10,10 @@
    released over ``release_time``: the packaging closes around the content. A shrunk content
    then grows back to full size over ``growth_time`` while a small pressure holds the layers
    on it. Each layer is held in the plane at two nodes (``hold_film_centre``).
-3. Settling: with friction (``AssemblySettings.friction``) and mass-proportional damping (an
-   assembly aid, :attr:`Model.mass_damping`) the consignment comes to rest; the run stops when
-   the kinetic energy is below ``kinetic_tolerance`` or after ``max_settle_time``.
+3. Settling: with friction (``AssemblySettings.friction``), mass-proportional damping (an
+   assembly aid, :attr:`Model.mass_damping`) and the integrator's full high-frequency
+   dissipation (``settle_rho_inf``) the consignment comes to rest; the run stops when the
+   kinetic energy is below ``kinetic_tolerance`` or after ``max_settle_time``.
 
 The three phases are three models of the same mesh (node numbering is identical by
 construction); the state carries over. The result is a :class:`Snapshot` at rest.
