@@ -265,6 +265,8 @@ def test_content_scale_out_of_range_is_refused():
         AssemblySettings(hold_film_centre="no")
     with pytest.raises(ValueError, match=r"settle_rho_inf must be in \[0, 1\], got 1.5"):
         AssemblySettings(settle_rho_inf=1.5)
+    with pytest.raises(ValueError, match=r"settle_rho_inf must be in \[0, 1\], got True"):
+        AssemblySettings(settle_rho_inf=True)
     assert AssemblySettings(settle_rho_inf=0.0).settle_rho_inf == 0.0  # 0 is allowed
 
 

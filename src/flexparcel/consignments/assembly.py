@@ -163,7 +163,8 @@ class AssemblySettings:
             if (k == "content_scale" and v is None) or k == "friction":
                 continue
             if k == "settle_rho_inf":
-                if not (isinstance(v, int | float) and 0.0 <= v <= 1.0):
+                ok = isinstance(v, int | float) and not isinstance(v, bool)
+                if not (ok and 0.0 <= v <= 1.0):
                     raise ValueError(f"AssemblySettings.{k} must be in [0, 1], got {v!r}")
                 continue
             if k == "hold_film_centre":
