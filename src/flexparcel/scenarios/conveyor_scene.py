@@ -742,8 +742,9 @@ def conveyor_options() -> IntegratorOptions:
     with a slow regrowth of the step cap after a Newton failure (``newton_cap_growth`` 1.02).
 
     Measured on the four paper consignments at 25 mm from their snapshots (first 0.01 s, the
-    same machine load): PB's film nodes, stiff contact on a 34 mg node, limit Newton's reach
-    to about 27 us, which stays put; with the default regrowth (1.05 per step) a step failed
+    same machine load): PB's film nodes, slipping on their content with a slip direction
+    that flips between Newton iterations, limit Newton's reach to about 27 us, which stays
+    put; with the default regrowth (1.05 per step) a step failed
     every 6 steps, each failure costing as much as 5-8 accepted steps: 463 steps, 73 failures,
     1,263 Newton iterations, 181 s; with 1.02: 406 steps, 34 failures, 781 iterations, 116 s.
     KP/BW, KP and BW alone (0.05 s): 92.8 s and 92.5 s, the same. Newton relaxation (the
