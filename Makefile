@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 OUT ?= out
 
-.PHONY: demo test slow bench lint format clean
+.PHONY: demo test slow bench lint format clean clean-numba-cache
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -39,3 +39,9 @@ format: $(STAMP)
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info src/*.egg-info
+
+# numba's on-disk cache of a kernel does not notice edits to the njit functions it calls in
+# other modules (an edit of contact/law.py left faces.py's cached kernels on the old code)
+clean-numba-cache:
+	find src -name '*.nbi' -delete
+	find src -name '*.nbc' -delete
