@@ -357,7 +357,8 @@ def test_unsettled_assembly_writes_its_last_state_and_fails(assembled, tmp_path,
     monkeypatch.setattr(asm_mod, "assemble", not_at_rest)
     out = tmp_path / "a"
     assert main(["assemble", str(EXAMPLE), "--out", str(out), "--no-progress"]) == 1
-    assert "not at rest" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "not at rest" in err and str(out / "unsettled.npz") in err  # says where it is
     assert (out / "unsettled.png").stat().st_size > 0 and not (out / "snapshot.npz").exists()
     back = load_snapshot(out / "unsettled.npz")
     assert np.array_equal(back.positions, snap.positions) and back.info["at_rest"] is False

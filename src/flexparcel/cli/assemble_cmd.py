@@ -43,7 +43,7 @@ def element_size_m(mm: float | None) -> float | None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from flexparcel.cli.consignment_jobs import assemble_job
+    from flexparcel.cli.consignment_jobs import UNSETTLED_FILES, assemble_job
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
 
@@ -58,8 +58,8 @@ def run(args: argparse.Namespace) -> int:
     except AssemblyError as exc:
         print(f"flexparcel assemble: assembly failed: {exc}", file=sys.stderr)
         if exc.unsettled is not None:
-            print(f"its last state: {args.out / 'unsettled.npz'}, {args.out / 'unsettled.png'}",
-                  file=sys.stderr)  # fmt: skip
+            paths = ", ".join(str(args.out / name) for name in UNSETTLED_FILES)
+            print(f"its last state: {paths}", file=sys.stderr)
         return 1
     info = snap.info
     print(

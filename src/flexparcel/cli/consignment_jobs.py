@@ -26,6 +26,7 @@ from flexparcel.io.atomic import write_atomic
 __all__ = [
     "TESTS",
     "DEFAULT_T_END",
+    "UNSETTLED_FILES",
     "default_parameters",
     "run_parameters",
     "check_snapshot_matches",
@@ -43,6 +44,9 @@ _DT_OUT = {"swing": 0.005, "drop-vertical": 0.001, "drop-horizontal": 0.001}
 """Output interval [s]: the drop's impact lasts a few ms, the swing ~1 s."""
 MIN_FRAMES = 10  # short runs still get enough recorded frames for the pictures
 DROP_HEIGHT = 0.200  # paper 3.2 [m]
+UNSETTLED_FILES = ("unsettled.npz", "unsettled.png")
+"""What :func:`assemble_job` leaves in its directory when the consignment does not come to
+rest: the last state (a snapshot file) and its picture."""
 CLAMPED_LENGTH = 0.020  # swing_test's default clamp [m] (paper 3.2), which the curve refers to
 
 
@@ -178,8 +182,8 @@ def assemble_job(
 ) -> tuple[Snapshot, JobFiles]:
     """Assemble ``build`` and write the snapshot, ``assembly.json``, a picture and ParaView
     files of the settled state into ``out``. A consignment that does not come to rest raises
-    :class:`AssemblyError` after its last state is written to ``out/unsettled.npz`` and
-    ``out/unsettled.png`` (for diagnosis; no test starts from it)."""
+    :class:`AssemblyError` after its last state and picture are written to ``out``
+    (:data:`UNSETTLED_FILES`; for diagnosis, no test starts from it)."""
     from flexparcel.cli.progress import PhaseLine
     from flexparcel.consignments.assembly import AssemblyError, assemble
     from flexparcel.consignments.snapshot import save_snapshot
@@ -194,9 +198,10 @@ def assemble_job(
         snap = assemble(build, progress=line)
     except AssemblyError as exc:
         if exc.unsettled is not None:
-            save_snapshot(exc.unsettled, out / "unsettled.npz")
+            npz, png = UNSETTLED_FILES
+            save_snapshot(exc.unsettled, out / npz)
             model, c = _consignment_model(build)
-            _snapshot_picture(out / "unsettled.png", exc.unsettled, "not at rest", model, c)
+            _snapshot_picture(out / png, exc.unsettled, "not at rest", model, c)
         raise
     finally:
         line.done()

@@ -159,20 +159,19 @@ class AssemblySettings:
                 f"AssemblySettings.friction must be one of {', '.join(ASSEMBLY_FRICTION)}, "
                 f"got {self.friction!r}"
             )
+        # every field is a positive number except these, checked below
+        special = ("friction", "content_scale", "settle_rho_inf", "hold_film_centre")
         for k, v in asdict(self).items():
-            if (k == "content_scale" and v is None) or k == "friction":
-                continue
-            if k == "settle_rho_inf":
-                ok = isinstance(v, int | float) and not isinstance(v, bool)
-                if not (ok and 0.0 <= v <= 1.0):
-                    raise ValueError(f"AssemblySettings.{k} must be in [0, 1], got {v!r}")
-                continue
-            if k == "hold_film_centre":
-                if not isinstance(v, bool):
-                    raise ValueError(f"AssemblySettings.{k} must be true or false, got {v!r}")
-                continue
-            if not (np.isfinite(v) and v > 0):
+            if k not in special and not (np.isfinite(v) and v > 0):
                 raise ValueError(f"AssemblySettings.{k} must be > 0, got {v!r}")
+        if not isinstance(self.hold_film_centre, bool):
+            raise ValueError(
+                f"AssemblySettings.hold_film_centre must be true or false, "
+                f"got {self.hold_film_centre!r}"
+            )
+        r = self.settle_rho_inf
+        if isinstance(r, bool) or not (isinstance(r, int | float) and 0.0 <= r <= 1.0):
+            raise ValueError(f"AssemblySettings.settle_rho_inf must be in [0, 1], got {r!r}")
         if self.content_scale is not None and not 0.3 <= self.content_scale <= 1.0:
             raise ValueError(
                 f"AssemblySettings.content_scale must be in [0.3, 1], got {self.content_scale!r}"

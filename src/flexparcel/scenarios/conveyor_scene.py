@@ -55,6 +55,7 @@ from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.io.tomlfile import read_toml
 from flexparcel.model.builder import Model, ModelBuilder, State
 from flexparcel.model.checks import finite_number
+from flexparcel.scenarios.consignment_tests import consignment_options
 from flexparcel.scenarios.conveyor import ConveyorParts, ConveyorScene, add_conveyor
 from flexparcel.scenarios.conveyor_responses import ConsignmentResponse, conveyor_responses
 from flexparcel.scenarios.friction_pairs import (
@@ -737,8 +738,9 @@ class ConveyorRun:
 
 
 def conveyor_options() -> IntegratorOptions:
-    """Integrator options of the conveyor scenes: as the consignment tests (rho_inf = 0.5,
-    ``impact_limit="rigid"``, ``error_estimate="smooth"``), without Newton relaxation, and
+    """Integrator options of the conveyor scenes: the consignment tests' options
+    (:func:`~flexparcel.scenarios.consignment_tests.consignment_options`: rho_inf = 0.5,
+    ``impact_limit="rigid"``, ``error_estimate="smooth"``) without Newton relaxation, and
     with a slow regrowth of the step cap after a Newton failure (``newton_cap_growth`` 1.02).
 
     Measured on the four paper consignments at 25 mm from their snapshots (first 0.01 s, the
@@ -751,9 +753,7 @@ def conveyor_options() -> IntegratorOptions:
     consignment tests' choice), both with 1.02, over the first 0.02 s of the four: 243 s
     (372 steps, 1,670 iterations) against 224 s (811 steps, 1,559 iterations) without; it was
     24 % slower on KP/BW, KP and BW alone, so it stays off."""
-    return IntegratorOptions(
-        rho_inf=0.5, impact_limit="rigid", error_estimate="smooth", newton_cap_growth=1.02
-    )
+    return replace(consignment_options(), newton_relaxation=False, newton_cap_growth=1.02)
 
 
 def run_conveyor(
