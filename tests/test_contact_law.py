@@ -26,10 +26,12 @@ from flexparcel.contact import (
     P_OPTION,
     P_R_DF,
     P_S_MAX,
+    P_SLIP_TANGENT,
     P_V_D,
     P_V_S,
     PACKED_SIZE,
     ContactLaw,
+    anchored_friction,
     friction_coefficient,
     friction_force,
     friction_force_packed,
@@ -307,6 +309,34 @@ def test_stick_return_map_and_consistent_tangent(label, u_prev, du, expect_slip)
     np.testing.assert_allclose(dfn, fd_n, rtol=1e-7, atol=1e-12)
 
 
+@pytest.mark.parametrize("du", [_vec(5e-7, (0.2, 1, 0)), _vec(5e-5, (0.3, 1, 0.1))])
+def test_stick_tangent_while_slipping_keeps_the_force(du):
+    # P_SLIP_TANGENT = 1 changes only the derivatives of a slipping contact (to those of
+    # sticking, -k_t I, without the F_N and mu(v) terms); force, elastic displacement and
+    # the slip flag are those of the consistent return map, bit for bit
+    law = ContactLaw(stiffness=1e5, mu_static=MU_S, mu_dynamic=MU_D, v_static=V_S,
+                     v_dynamic=V_D, stick_stiffness=K_T)  # fmt: skip
+    p = law.packed()
+    q = p.copy()
+    q[P_SLIP_TANGENT] = 1.0
+    u0 = _vec(1.25e-4, (1, 0, 0))
+    ref = stick_friction_packed(u0, du, 5.0, DT, p)
+    got = stick_friction_packed(u0, du, 5.0, DT, q)
+    assert ref[2] and got[2]  # slipping
+    for a, b in zip(ref[:3], got[:3], strict=True):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(got[3], -K_T * np.eye(3))
+    np.testing.assert_array_equal(got[4], np.zeros(3))
+    assert not np.allclose(ref[3], -K_T * np.eye(3))  # the consistent tangent differs
+    a = u0 + du
+    ref = anchored_friction(a, du / DT, 5.0, p)
+    got = anchored_friction(a, du / DT, 5.0, q)
+    for x, y in zip(ref[:2], got[:2], strict=True):
+        np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(got[2], -K_T * np.eye(3))
+    assert not got[3].any() and not got[4].any()
+
+
 def test_stick_model_limits_creep_and_breaks_loose():
     # A tangential load below mu_s F_N is carried by the spring; the displacement is bounded by
     # mu_s F_N / k_t whatever the number of steps (no creep, unlike eq. 8 where mu(0) = 0).
@@ -418,6 +448,7 @@ def test_packed_layout_and_packed_kernels():
         P_V_D: 1.5e-3,
         P_MAX_PEN: math.inf,
         P_K_T: K_T,
+        P_SLIP_TANGENT: 0.0,  # the integrator's choice (IntegratorOptions.friction_tangent)
     }
     assert sorted(expect) == list(range(PACKED_SIZE))
     for i, v in expect.items():

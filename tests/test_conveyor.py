@@ -81,24 +81,29 @@ def test_box_dropped_on_the_conveyor_belt_reaches_belt_speed_at_v_over_mu_g():
     assert np.abs(r.velocities[:, node, 1]).max() < 1e-6
 
 
-def _box_against_deflector(theta_deg, mu_f, mu_b, t_end):
+def _box_against_deflector(theta_deg, mu_f, mu_b, t_end, stick=False, options=None):
     """The 0.2 x 0.15 box at rest on the belt, its long side flat against the (only)
     deflector near its root. The box cannot touch the deflector's triangle mesh (only shell
     nodes can), so it touches an unbounded plane through the deflector face: valid while the
-    box is alongside the deflector, which the belt width keeps it for the whole run."""
+    box is alongside the deflector, which the belt width keeps it for the whole run.
+    ``stick``: both laws with the stick model (k_t = c)."""
+
+    def law(mu):
+        return _law(mu).with_stick_model() if stick else _law(mu)
+
     scene = ConveyorScene(belt_width=1.4, deflector_x=(0.2,), deflector_angle_deg=theta_deg)
     b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
     parts = add_conveyor(b, scene)
     g = parts.deflectors[0]
     centre = g.point + 0.12 * g.tangent + 0.075 * g.normal + np.array([0.0, 0.0, 0.025 - SINK])
     node = b.add_rigid_body(BOX, tuple(centre))
-    b.add_contact(node, parts.belt_plane, _law(mu_b))
-    b.add_contact(node, b.add_plane(tuple(g.point), tuple(g.normal)), _law(mu_f))
+    b.add_contact(node, parts.belt_plane, law(mu_b))
+    b.add_contact(node, b.add_plane(tuple(g.point), tuple(g.normal)), law(mu_f))
     model = b.finalize()
     s = model.initial_state()
     # body x (the long side) along the deflector: first deflector, tangent (cos, -sin, 0)
     s.rotations[node] = rotation_exp(np.array([0.0, 0.0, -np.radians(theta_deg)]))
-    r = fp.simulate(model, t_end, dt_out=0.01, state=s)
+    r = fp.simulate(model, t_end, dt_out=0.01, state=s, options=options)
     v = r.velocities[:, node, :3]
     resp = conveyor_responses(
         r,
@@ -127,6 +132,26 @@ def test_belt_drags_box_along_a_45_degree_deflector_at_the_closed_form_speed():
     assert resp.deflector_contact_time == pytest.approx((0.9,), abs=0.01)
     assert resp.jam_start is None
     assert resp.exit_time is None
+
+
+@pytest.mark.parametrize("friction_tangent, newton_tol", [("consistent", 1e-2), ("stick", 1e-4)])
+def test_stick_model_sliding_along_a_deflector_with_either_friction_tangent(
+    friction_tangent, newton_tol
+):
+    # The same closed form u = v_b (cos - mu_f sin) with the stick model on both contacts: the
+    # belt and the deflector slip all the way, so the return map caps the force at mu_d F_N
+    # (slip far above v_d) and the stick springs do not change the steady state; same 0.5 %
+    # over 0.8-0.9 s as with the regularised law. The Newton tangent of a slipping contact
+    # changes the iterations, not the forces. With the stick tangent (-k_t I) Newton
+    # converges linearly, so the state is as accurate as the Newton tolerance and no better:
+    # measured 1.0 % off at the default newton_tol 1e-2 (the box's velocity rattles by
+    # displacement errors ~1e-6 m over ms steps), 0.14 % at 1e-4, 0.13 % with the consistent
+    # tangent at 1e-2 (quadratic convergence lands far inside the tolerance).
+    vb, th, mu_f = 1.6, np.radians(45.0), 0.3
+    opt = fp.IntegratorOptions(friction_tangent=friction_tangent, newton_tol=newton_tol)
+    r, _, _, u, _, _ = _box_against_deflector(45.0, mu_f, 1.0, 0.9, stick=True, options=opt)
+    late = r.time >= 0.8 - 1e-9
+    assert np.all(np.abs(u[late] / (vb * (np.cos(th) - mu_f * np.sin(th))) - 1.0) < 5e-3)
 
 
 def test_box_stalls_against_a_deflector_when_mu_f_exceeds_cot_theta():

@@ -19,6 +19,7 @@ from flexparcel.cli import main
 from flexparcel.consignments.build import ConsignmentBuild
 from flexparcel.consignments.snapshot import SnapshotError, load_snapshot, place_snapshot
 from flexparcel.consignments.userfile import load_consignment_file
+from flexparcel.io.checkpoint import load_checkpoint
 from flexparcel.scenarios.conveyor import ConveyorScene
 from flexparcel.scenarios.conveyor_scene import (
     Placement,
@@ -286,6 +287,24 @@ def test_conveyor_cli_writes_its_files(conveyor_run, capsys):
 
     with Image.open(out / "animation.gif") as gif:
         assert gif.n_frames > 1
+
+
+def test_conveyor_cli_resumes_from_its_checkpoint(conveyor_run, snapshot_dir, capsys):
+    # the finished run left a complete checkpoint: the same command takes the run from it
+    # (no step) and writes the same responses; a changed scene is refused by name
+    out, r = conveyor_run
+    assert load_checkpoint(out / "checkpoint.npz").header["complete"]
+    args = ["run", "conveyor", "--scene", str(SCENE), "--snapshot-dir", str(snapshot_dir),
+            "--t-end", "0.01", "--out", str(out), "--no-progress"]  # fmt: skip
+    capsys.readouterr()
+    assert main(args) == 0
+    assert f"resuming from {out / 'checkpoint.npz'}" in capsys.readouterr().err
+    again = json.loads((out / "responses.json").read_text())
+    for name, c in r["consignments"].items():
+        assert again["consignments"][name]["trajectory"] == c["trajectory"], name
+    assert again["steps"] == r["steps"]
+    err = _error(capsys, [*args, "--belt-speed", "1.2"])
+    assert "written for another model" in err and "remove it" in err
 
 
 def test_conveyor_cli_reuses_cached_snapshots(snapshot_dir, tmp_path, capsys):

@@ -161,3 +161,19 @@ def test_newton_cap_growth_out_of_range_is_refused():
     for bad in (1.0, 0.9, 3.0, float("nan")):
         with pytest.raises(ValueError, match=r"newton_cap_growth must be in \(1, 2\]"):
             fp.IntegratorOptions(newton_cap_growth=bad)
+
+
+def test_friction_tangent_option_is_validated_and_leaves_the_callers_laws():
+    with pytest.raises(ValueError, match="friction_tangent must be 'consistent' or 'stick'"):
+        fp.IntegratorOptions(friction_tangent="exact")
+    from flexparcel.contact.law import P_SLIP_TANGENT, ContactLaw
+    from flexparcel.integrate.dynamic import GeneralizedAlpha
+
+    b = fp.ModelBuilder()
+    node = b.add_rigid_body(fp.RoundedBox(0.1, 0.1, 0.1, 0.01, mass=1.0), (0.0, 0.0, 0.05))
+    b.add_contact(node, b.add_plane((0, 0, 0), (0, 0, 1)),
+                  ContactLaw(stiffness=1e5, mu_static=0.3).with_stick_model())  # fmt: skip
+    model = b.finalize()
+    integ = GeneralizedAlpha(model, fp.IntegratorOptions(friction_tangent="stick"))
+    assert np.all(integ.model.contact_laws[:, P_SLIP_TANGENT] == 1.0)
+    assert np.all(model.contact_laws[:, P_SLIP_TANGENT] == 0.0)  # the caller's model

@@ -170,6 +170,20 @@ def _conveyor(
                                                Path(work))  # fmt: skip
     layout = default_layout({k: s.build for k, s in snaps.items()}, speed=start_speed)
     shown = progress is not None and getattr(progress, "enabled", True)
+    # an interrupted benchmark resumes from its checkpoint (its wall time counts), a finished
+    # one is measured again
+    from flexparcel.cli.conveyor_job import CHECKPOINT_FILE
+    from flexparcel.io.checkpoint import CheckpointError, load_checkpoint
+
+    ckpt = Path(work) / "run" / CHECKPOINT_FILE
+    resumed = False
+    if ckpt.exists():
+        try:
+            resumed = not load_checkpoint(ckpt).header["complete"]
+        except CheckpointError:
+            resumed = False
+        if not resumed:
+            ckpt.unlink()
     run, summary, files = conveyor_job(snaps, layout, Path(work) / "run", t_end=t_end,
                                        progress=shown)  # fmt: skip
     st = run.result.stats
@@ -183,6 +197,7 @@ def _conveyor(
         "start_speed_m_s": start_speed,
         "simulated_s": t_end,
         "wall_s": run.wall_s,
+        "resumed_from_checkpoint": resumed,
         "build_wall_s": run.build_wall_s,
         "assembly_wall_s": assembly_wall,
         "dof_count": run.conveyor_model.model.dof_count,

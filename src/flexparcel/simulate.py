@@ -6,15 +6,27 @@ positions, rotation vectors, velocities and energies at the output times.
 
 from __future__ import annotations
 
+import json
 import time as _time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from flexparcel.elements.rotations import rotation_vectors
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.dynamic import GeneralizedAlpha, IntegratorOptions
+from flexparcel.io.checkpoint import (
+    CHECKPOINT_FORMAT,
+    CHECKPOINT_VERSION,
+    RunCheckpoint,
+    check_same_run,
+    load_checkpoint,
+    model_fingerprint,
+    save_checkpoint,
+    state_fingerprint,
+)
 from flexparcel.model.builder import Model, State
 
 __all__ = ["SimulationResult", "simulate"]
@@ -61,9 +73,17 @@ def simulate(
     options: IntegratorOptions | None = None,
     state: State | None = None,
     progress: Callable[[float, float], None] | None = None,
+    checkpoint: str | Path | None = None,
+    checkpoint_interval_s: float = 60.0,
 ) -> SimulationResult:
     """Integrate ``model`` from ``state`` (default: at rest in the reference configuration)
     to ``t_end`` [s], recording every ``dt_out`` [s] (default ``t_end / 200``).
+
+    ``checkpoint``: a ``.npz`` path (:mod:`flexparcel.io.checkpoint`). The run writes it at an
+    output frame whenever ``checkpoint_interval_s`` [s] of wall time have passed since the
+    last write (0: every frame), and at the end. If the file exists when the call starts, the
+    run resumes from it -- after checking that it was written for the same model, initial
+    state, times and options -- and a complete checkpoint is returned without stepping.
 
     Raises :class:`flexparcel.ConvergenceError` (naming time, step and worst node) if a step
     cannot be completed even at the minimum step size; nothing non-finite is ever recorded.
@@ -77,7 +97,30 @@ def simulate(
     dt_out = (t_end - t0) / 200.0 if dt_out is None else float(dt_out)
     if not (np.isfinite(dt_out) and dt_out > 0):
         raise ValueError(f"simulate: dt_out must be > 0 s, got {dt_out!r}")
+    if not (np.isfinite(checkpoint_interval_s) and checkpoint_interval_s >= 0):
+        raise ValueError(
+            f"simulate: checkpoint_interval_s must be >= 0 s, got {checkpoint_interval_s!r}"
+        )
     integ = GeneralizedAlpha(model, options)
+    header = None
+    resumed = None
+    if checkpoint is not None:
+        header = {
+            "format": CHECKPOINT_FORMAT,
+            "version": CHECKPOINT_VERSION,
+            "t0": float(t0),
+            "t_end": float(t_end),
+            "dt_out": dt_out,
+            "node_count": model.node_count,
+            "model": model_fingerprint(model),
+            "initial_state": state_fingerprint(s),
+            "options": json.loads(json.dumps(asdict(integ.opt))),
+        }
+        if Path(checkpoint).exists():
+            resumed = load_checkpoint(checkpoint)
+            check_same_run(
+                checkpoint, resumed.header, {k: v for k, v in header.items() if k != "version"}
+            )
     wall0 = _time.perf_counter()
     integ.initialize(s)
     n_out = int(np.floor((t_end - t0) / dt_out + 1e-9))
@@ -98,7 +141,33 @@ def simulate(
         rec_v.append(st.velocities.copy())
         rec_e.append(_energies(model, st))
 
-    record(s)
+    def save(complete: bool) -> None:
+        frames = {
+            "time": np.array(rec_t), "positions": np.array(rec_x),
+            "rotation_vectors": np.array(rec_r), "velocities": np.array(rec_v),
+            "energies": np.array(rec_e),
+        }  # fmt: skip
+        hist = integ.history()
+        hist["wall_total"] = np.array(wall_before + _time.perf_counter() - wall0)
+        save_checkpoint(
+            checkpoint, RunCheckpoint({**header, "complete": complete}, frames, s, hist)
+        )
+
+    wall_before = 0.0  # wall time of the run before it was resumed
+    if resumed is None:
+        record(s)
+    else:
+        f = resumed.frames
+        rec_t.extend(f["time"].tolist())
+        rec_x.extend(f["positions"])
+        rec_r.extend(f["rotation_vectors"])
+        rec_v.extend(f["velocities"])
+        rec_e.extend(tuple(e) for e in f["energies"].tolist())
+        s = resumed.state
+        integ.restore_history(resumed.history)
+        wall_before = float(resumed.history.get("wall_total", 0.0))
+        out_times = out_times[out_times > s.time + 1e-12 * max(1.0, abs(s.time))]
+    last_save = _time.perf_counter()
     for t_out in out_times:
         while s.time < t_out - 1e-12 * max(1.0, abs(t_out)):
             nxt = [b for b in breaks if s.time + 1e-12 < b < t_out]
@@ -107,7 +176,13 @@ def simulate(
                 progress(s.time, t_end)
         s.time = float(t_out)  # remove round-off drift so outputs sit on the grid
         record(s)
-    wall = _time.perf_counter() - wall0
+        if checkpoint is not None and t_out != out_times[-1]:
+            if _time.perf_counter() - last_save >= checkpoint_interval_s:
+                save(complete=False)
+                last_save = _time.perf_counter()
+    if checkpoint is not None and (resumed is None or not resumed.header.get("complete")):
+        save(complete=True)
+    wall = wall_before + _time.perf_counter() - wall0
     e = np.array(rec_e)
     st = asdict(integ.stats)
     st["wall_s"]["total"] = wall

@@ -6,10 +6,13 @@ Files (in ``out``): ``responses.json``, ``results.npz``, ``paraview/conveyor.pvd
 packaging and deflector faces) + ``paraview/contents.pvd`` (rigid contents as boxes),
 ``snapshots.png`` (top views at 0, 1 and 2 s, or at 0, t_end / 2 and t_end for shorter runs),
 ``trajectories.png``, ``animation.gif`` and the assembled snapshots in ``snapshots/``.
+While it runs, ``checkpoint.npz`` (:mod:`flexparcel.io.checkpoint`): the same command after an
+interruption resumes from it; it is refused if the scene or options changed.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -19,7 +22,15 @@ from flexparcel.consignments.build import ConsignmentBuild
 from flexparcel.consignments.snapshot import Snapshot
 from flexparcel.scenarios.conveyor_scene import ConveyorRun, SceneLayout
 
-__all__ = ["snapshot_for", "conveyor_job", "snapshot_times", "parse_consignment_list"]
+__all__ = [
+    "CHECKPOINT_FILE",
+    "snapshot_for",
+    "conveyor_job",
+    "snapshot_times",
+    "parse_consignment_list",
+]
+
+CHECKPOINT_FILE = "checkpoint.npz"
 
 
 def _cache_dir(out: Path, key: str, build: ConsignmentBuild) -> Path:
@@ -140,9 +151,12 @@ def conveyor_job(
     out.mkdir(parents=True, exist_ok=True)
     dt_out = min(0.01, t_end / 20.0)
     bar = ProgressLine(f"conveyor ({len(layout.placements)} consignments)", enabled=progress)
+    checkpoint = out / CHECKPOINT_FILE
+    if checkpoint.exists():
+        print(f"conveyor: resuming from {checkpoint}", file=sys.stderr)
     try:
         run = run_conveyor(snapshots, layout, t_end, dt_out=dt_out, pair_reach=pair_reach,
-                           progress=bar)  # fmt: skip
+                           progress=bar, checkpoint=checkpoint)  # fmt: skip
     finally:
         bar.done()
     summary = run.summary()

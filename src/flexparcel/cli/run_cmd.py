@@ -31,7 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "deflectors, 2 s) and writes DIR/responses.json, DIR/results.npz, "
         "DIR/paraview/conveyor.pvd, DIR/snapshots.png (top views at 0, 1, 2 s), "
         "DIR/trajectories.png and DIR/animation.gif; snapshots are assembled into "
-        "DIR/snapshots/ (reused when present) unless --snapshot-dir is given.",
+        "DIR/snapshots/ (reused when present) unless --snapshot-dir is given. A conveyor "
+        "run saves DIR/checkpoint.npz about once a minute: the same command resumes an "
+        "interrupted run from it.",
     )
     p.add_argument("test", choices=SCENARIOS, help="which test or scenario")
     p.add_argument(

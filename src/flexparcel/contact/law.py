@@ -47,6 +47,11 @@ Packed parameter layout (``float64`` array of length :data:`PACKED_SIZE`)::
     11     P_V_D        v_d      m/s                          dynamic threshold speed
     12     P_MAX_PEN    -        m                            max penetration (inf if none)
     13     P_K_T        k_t      N/m                          stick stiffness (0 if no stick model)
+    14     P_SLIP_TANGENT -      -                            Newton tangent while slipping:
+                                                              0 = consistent, 1 = stick (-k_t I)
+
+``P_SLIP_TANGENT`` is a solver choice, not physics: :meth:`ContactLaw.packed` writes 0 and the
+integrator sets it (``IntegratorOptions.friction_tangent``). Forces never depend on it.
 """
 
 from __future__ import annotations
@@ -80,6 +85,7 @@ __all__ = [
     "P_V_D",
     "P_MAX_PEN",
     "P_K_T",
+    "P_SLIP_TANGENT",
     "step",
     "step_dx",
     "step5",
@@ -116,7 +122,8 @@ P_V_S = 10
 P_V_D = 11
 P_MAX_PEN = 12
 P_K_T = 13
-PACKED_SIZE = 14
+P_SLIP_TANGENT = 14
+PACKED_SIZE = 15
 
 # mm -> m. RecurDyn's N-kg-mm-s unit set differs from SI only in length.
 _MM = 1.0e-3
@@ -697,8 +704,13 @@ def stick_friction(
         Stick: dF_T/d(du_t) = -k_t I. Slip: -F_N [mu_k (I - n n^T)/|a| + n (dmu_k/dv)
         du_t^T/(|du_t| dt)] with n = a/|a|.
     """
+    return _stick_return_map(u_el_prev, du_t, f_n, k_t, mu_s, mu_d, v_s, v_d, dt, False)
+
+
+@nb.njit(cache=True)
+def _stick_return_map(u_el_prev, du_t, f_n, k_t, mu_s, mu_d, v_s, v_d, dt, stick_tangent):
     f, u_new, slipping, dfd, dfv, dfn = _return_map(
-        u_el_prev + du_t, du_t / dt, f_n, k_t, mu_s, mu_d, v_s, v_d
+        u_el_prev + du_t, du_t / dt, f_n, k_t, mu_s, mu_d, v_s, v_d, stick_tangent
     )
     # the slip speed is |du_t| / dt: d/d(du_t) = d/da + d/d(speed vector) / dt
     return f, u_new, slipping, dfd + dfv / dt, dfn
@@ -708,9 +720,19 @@ def stick_friction(
 def stick_friction_packed(
     u_el_prev: np.ndarray, du_t: np.ndarray, f_n: float, dt: float, p: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, bool, np.ndarray, np.ndarray]:
-    """:func:`stick_friction` with parameters from :meth:`ContactLaw.packed` (needs k_t > 0)."""
-    return stick_friction(
-        u_el_prev, du_t, f_n, p[P_K_T], p[P_MU_S], p[P_MU_D], p[P_V_S], p[P_V_D], dt
+    """:func:`stick_friction` with parameters from :meth:`ContactLaw.packed` (needs k_t > 0);
+    the tangent while slipping is the stick tangent -k_t I where ``p[P_SLIP_TANGENT]`` is 1."""
+    return _stick_return_map(
+        u_el_prev,
+        du_t,
+        f_n,
+        p[P_K_T],
+        p[P_MU_S],
+        p[P_MU_D],
+        p[P_V_S],
+        p[P_V_D],
+        dt,
+        p[P_SLIP_TANGENT] != 0.0,
     )
 
 
@@ -743,7 +765,7 @@ def anchored_friction(
         dF_T/da [N/m] (3, 3), dF_T/dvt [N s/m] (3, 3), dF_T/dF_N [-] (3,).
     """
     f, u_new, _, dfa, dfv, dfn = _return_map(
-        a, vt, f_n, p[P_K_T], p[P_MU_S], p[P_MU_D], p[P_V_S], p[P_V_D]
+        a, vt, f_n, p[P_K_T], p[P_MU_S], p[P_MU_D], p[P_V_S], p[P_V_D], p[P_SLIP_TANGENT] != 0.0
     )
     return f, u_new, dfa, dfv, dfn
 
@@ -767,10 +789,17 @@ def contact_friction(stick, e, n, vt, f_n, p):
 
 
 @nb.njit(cache=True)
-def _return_map(a, v, f_n, k_t, mu_s, mu_d, v_s, v_d):
+def _return_map(a, v, f_n, k_t, mu_s, mu_d, v_s, v_d, stick_tangent):
     """The stick model's return map for the trial elastic displacement ``a`` (3,) [m], with
     ``v`` (3,) [m/s] the slip velocity that sets mu_k while slipping. Returns (F_T, new elastic
-    displacement, slipping, dF_T/da, dF_T/dv, dF_T/dF_N)."""
+    displacement, slipping, dF_T/da, dF_T/dv, dF_T/dF_N).
+
+    With ``stick_tangent`` the derivatives while slipping are those of sticking (dF_T/da =
+    -k_t I, nothing else): the force is unchanged, Newton then converges linearly on slipping
+    contacts but does not chase the consistent tangent's -mu F_N (I - n n^T)/|a|, which
+    flips with the slip direction n of a contact that barely slips (a quasi-Newton choice:
+    Wriggers, *Computational Contact Mechanics*, 2006, on the non-symmetric friction tangent).
+    """
     a_norm = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
     f = np.empty(3)
     u_new = np.empty(3)
@@ -790,6 +819,9 @@ def _return_map(a, v, f_n, k_t, mu_s, mu_d, v_s, v_d):
         ni = a[i] / a_norm
         f[i] = -mu_k * f_n * ni
         u_new[i] = mu_k * f_n * ni / k_t
+        if stick_tangent:
+            dfa[i, i] = -k_t
+            continue
         dfn[i] = -mu_k * ni
         for j in range(3):
             nj = a[j] / a_norm

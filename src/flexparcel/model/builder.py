@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from flexparcel.contact.law import PACKED_SIZE
 from flexparcel.elements import shell
 from flexparcel.model.checks import finite_number
 from flexparcel.model.materials import ShellMaterial
@@ -95,7 +96,7 @@ class Model:
     """Unit normal of each plane, out of its solid side, shape (k, 3)."""
     plane_velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """Tangential surface velocity of each plane (a belt) [m/s], shape (k, 3)."""
-    contact_laws: np.ndarray = field(default_factory=lambda: np.zeros((0, 14)))
+    contact_laws: np.ndarray = field(default_factory=lambda: np.zeros((0, PACKED_SIZE)))
     """Packed contact laws (see ContactLaw.packed), shape (L, PACKED_SIZE)."""
     cp_node: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     """Node of each contact point, shape (P,)."""
@@ -925,7 +926,9 @@ class ModelBuilder:
             plane_point=np.array([p[0] for p in self._planes]).reshape(-1, 3),
             plane_normal=np.array([p[1] for p in self._planes]).reshape(-1, 3),
             plane_velocity=np.array([p[2] for p in self._planes]).reshape(-1, 3),
-            contact_laws=(np.array([law.packed() for law in laws]) if laws else np.zeros((0, 14))),
+            contact_laws=(
+                np.array([law.packed() for law in laws]) if laws else np.zeros((0, PACKED_SIZE))
+            ),
             cp_node=np.concatenate(cpn) if cpn else np.zeros(0, np.int64),
             cp_offset=np.concatenate(cpo) if cpo else np.zeros((0, 3)),
             cp_radius=np.concatenate(cpr) if cpr else np.zeros(0),

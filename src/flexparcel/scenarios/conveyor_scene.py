@@ -767,13 +767,15 @@ def run_conveyor(
     options: IntegratorOptions | None = None,
     progress: Callable[[float, float], None] | None = None,
     jam_time: float = 0.3,
+    checkpoint: str | Path | None = None,
 ) -> ConveyorRun:
     """Build the scene (:func:`build_conveyor_model`), simulate ``t_end`` [s] in (0, 10]
     recording every ``dt_out`` [s], and compute each consignment's responses
     (:func:`~flexparcel.scenarios.conveyor_responses.conveyor_responses`, with the
     deflector normal forces of :func:`deflector_normal_forces` as its contact forces).
 
-    Integrator defaults: :func:`conveyor_options`.
+    Integrator defaults: :func:`conveyor_options`. ``checkpoint``: a ``.npz`` path the run
+    saves itself to about once a minute and resumes from (see :func:`flexparcel.simulate`).
     """
     t_end = finite_number("t_end", t_end)
     if not 0.0 < t_end <= 10.0:
@@ -786,10 +788,9 @@ def run_conveyor(
                               pair_reach=pair_reach)  # fmt: skip
     build_wall = time.perf_counter() - w0
     opts = options or conveyor_options()
-    w0 = time.perf_counter()
     res = simulate(cm.model, t_end, dt_out=dt_out, options=opts, state=cm.state0,
-                   progress=progress)  # fmt: skip
-    wall = time.perf_counter() - w0
+                   progress=progress, checkpoint=checkpoint)  # fmt: skip
+    wall = res.stats["wall_s"]["total"]  # with the wall time before a resumption
     forces = deflector_normal_forces(cm, res)
     responses = conveyor_responses(
         res, cm.node_sets(), layout.conveyor, contact_forces=forces,
