@@ -307,6 +307,45 @@ def test_conveyor_cli_resumes_from_its_checkpoint(conveyor_run, snapshot_dir, ca
     assert "written for another model" in err and "remove it" in err
 
 
+def test_conveyor_cli_preview_of_a_run_in_progress(snapshot_dir, tmp_path, capsys):
+    # a run interrupted after its first frames: --preview writes the files of those frames
+    # to DIR/preview/ without stepping and leaves the checkpoint as it was
+    out = tmp_path / "run"
+    args = ["run", "conveyor", "--scene", str(SCENE), "--snapshot-dir", str(snapshot_dir),
+            "--t-end", "0.01", "--out", str(out), "--no-progress"]  # fmt: skip
+    assert "no checkpoint" in _error(capsys, [*args, "--preview"])
+    from flexparcel.scenarios import conveyor_scene
+
+    real = conveyor_scene.simulate
+
+    def interrupted(*a, **kw):
+        def stop(t, t_end):
+            if t > 0.0021:  # after the frame at 0.002 s (dt_out = t_end / 20)
+                raise KeyboardInterrupt
+
+        return real(*a, **{**kw, "progress": stop, "checkpoint_interval_s": 0.0})
+
+    conveyor_scene.simulate = interrupted
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            main(args)
+    finally:
+        conveyor_scene.simulate = real
+    ckpt = out / "checkpoint.npz"
+    before = ckpt.read_bytes()
+    assert main([*args, "--preview"]) == 0
+    assert "preview of the checkpoint" in capsys.readouterr().out
+    r = json.loads((out / "preview" / "responses.json").read_text())
+    assert r["simulated_s"] == pytest.approx(0.002)
+    for name in ("snapshots.png", "trajectories.png", "animation.gif"):
+        assert (out / "preview" / name).stat().st_size > 0, name
+    assert not (out / "responses.json").exists()
+    assert ckpt.read_bytes() == before
+    assert "only apply to 'flexparcel run conveyor'" in _error(
+        capsys, ["run", "swing", "--consignment", "KP", "--preview", "--out", str(tmp_path)]
+    )
+
+
 def test_conveyor_cli_reuses_cached_snapshots(snapshot_dir, tmp_path, capsys):
     # a snapshot already in DIR/snapshots/ is reused (no assembly); a --snapshot-dir one of
     # another element size is refused

@@ -75,6 +75,7 @@ def simulate(
     progress: Callable[[float, float], None] | None = None,
     checkpoint: str | Path | None = None,
     checkpoint_interval_s: float = 60.0,
+    checkpoint_only: bool = False,
 ) -> SimulationResult:
     """Integrate ``model`` from ``state`` (default: at rest in the reference configuration)
     to ``t_end`` [s], recording every ``dt_out`` [s] (default ``t_end / 200``).
@@ -84,6 +85,8 @@ def simulate(
     last write (0: every frame), and at the end. If the file exists when the call starts, the
     run resumes from it -- after checking that it was written for the same model, initial
     state, times and options -- and a complete checkpoint is returned without stepping.
+    ``checkpoint_only``: return what the checkpoint holds so far (frames, state, statistics)
+    without stepping, e.g. to look at a run that another process is still computing.
 
     Raises :class:`flexparcel.ConvergenceError` (naming time, step and worst node) if a step
     cannot be completed even at the minimum step size; nothing non-finite is ever recorded.
@@ -101,6 +104,8 @@ def simulate(
         raise ValueError(
             f"simulate: checkpoint_interval_s must be >= 0 s, got {checkpoint_interval_s!r}"
         )
+    if checkpoint_only and checkpoint is None:
+        raise ValueError("simulate: checkpoint_only needs a checkpoint path")
     integ = GeneralizedAlpha(model, options)
     header = None
     resumed = None
@@ -116,6 +121,8 @@ def simulate(
             "initial_state": state_fingerprint(s),
             "options": json.loads(json.dumps(asdict(integ.opt))),
         }
+        if checkpoint_only and not Path(checkpoint).exists():
+            raise FileNotFoundError(f"simulate: no checkpoint {checkpoint} to read")
         if Path(checkpoint).exists():
             resumed = load_checkpoint(checkpoint)
             check_same_run(
@@ -167,6 +174,8 @@ def simulate(
         integ.restore_history(resumed.history)
         wall_before = float(resumed.history.get("wall_total", 0.0))
         out_times = out_times[out_times > s.time + 1e-12 * max(1.0, abs(s.time))]
+        if checkpoint_only:
+            out_times = out_times[:0]
     last_save = _time.perf_counter()
     for t_out in out_times:
         while s.time < t_out - 1e-12 * max(1.0, abs(t_out)):
@@ -180,7 +189,11 @@ def simulate(
             if _time.perf_counter() - last_save >= checkpoint_interval_s:
                 save(complete=False)
                 last_save = _time.perf_counter()
-    if checkpoint is not None and (resumed is None or not resumed.header.get("complete")):
+    if (
+        checkpoint is not None
+        and not checkpoint_only
+        and not (resumed is not None and resumed.header.get("complete"))
+    ):
         save(complete=True)
     wall = wall_before + _time.perf_counter() - wall0
     e = np.array(rec_e)

@@ -7,7 +7,8 @@ packaging and deflector faces) + ``paraview/contents.pvd`` (rigid contents as bo
 ``snapshots.png`` (top views at 0, 1 and 2 s, or at 0, t_end / 2 and t_end for shorter runs),
 ``trajectories.png``, ``animation.gif`` and the assembled snapshots in ``snapshots/``.
 While it runs, ``checkpoint.npz`` (:mod:`flexparcel.io.checkpoint`): the same command after an
-interruption resumes from it; it is refused if the scene or options changed.
+interruption resumes from it; it is refused if the scene or options changed. With ``preview``
+the same files are made from the frames the checkpoint holds so far, in ``preview/``.
 """
 
 from __future__ import annotations
@@ -133,9 +134,13 @@ def conveyor_job(
     progress: bool = True,
     extra: dict | None = None,
     animation_frames: int = 60,
+    preview: bool = False,
 ) -> tuple[ConveyorRun, dict, dict[str, str]]:
     """Run the scene and write the files of the module docstring. Returns the run, the
-    ``responses.json`` content and the written paths (name -> path)."""
+    ``responses.json`` content and the written paths (name -> path).
+
+    ``preview``: no stepping; the files of the frames that ``out/checkpoint.npz`` holds so far
+    (a run going on in another process, or an interrupted one) go to ``out/preview/``."""
     from flexparcel.cli.consignment_jobs import _write_json
     from flexparcel.cli.progress import ProgressLine
     from flexparcel.io.paraview import write_paraview, write_paraview_boxes
@@ -148,17 +153,24 @@ def conveyor_job(
     )
 
     out = Path(out)
+    checkpoint = out / CHECKPOINT_FILE
+    if preview and not checkpoint.is_file():
+        raise ValueError(f"--preview: no checkpoint {checkpoint} (start the run first)")
     out.mkdir(parents=True, exist_ok=True)
     dt_out = min(0.01, t_end / 20.0)
-    bar = ProgressLine(f"conveyor ({len(layout.placements)} consignments)", enabled=progress)
-    checkpoint = out / CHECKPOINT_FILE
-    if checkpoint.exists():
+    bar = ProgressLine(f"conveyor ({len(layout.placements)} consignments)",
+                       enabled=progress and not preview)  # fmt: skip
+    if checkpoint.exists() and not preview:
         print(f"conveyor: resuming from {checkpoint}", file=sys.stderr)
     try:
         run = run_conveyor(snapshots, layout, t_end, dt_out=dt_out, pair_reach=pair_reach,
-                           progress=bar, checkpoint=checkpoint)  # fmt: skip
+                           progress=bar, checkpoint=checkpoint,
+                           checkpoint_only=preview)  # fmt: skip
     finally:
         bar.done()
+    if preview:
+        out = out / "preview"
+        out.mkdir(exist_ok=True)
     summary = run.summary()
     summary["parameters"] = {
         "belt_speed_m_s": layout.conveyor.belt_speed,
@@ -193,7 +205,7 @@ def conveyor_job(
         ))  # fmt: skip
     cells = _consignment_cells(run)
     frames = []
-    for t in snapshot_times(t_end):
+    for t in snapshot_times(float(res.time[-1]) if preview else t_end):
         k = int(np.argmin(np.abs(res.time - t)))
         frames.append((float(res.time[k]), res.positions[k], boxes[k]))
     scene = layout.conveyor

@@ -14,7 +14,7 @@ __all__ = ["register", "run"]
 TESTS = ("swing", "drop-vertical", "drop-horizontal")  # as cli.consignment_jobs.TESTS
 SCENARIOS = (*TESTS, "conveyor")
 _CONVEYOR_ONLY = ("consignments", "belt_speed", "deflector_angle", "scene", "snapshot_dir",
-                  "pair_reach", "start_speed")  # fmt: skip
+                  "pair_reach", "start_speed", "preview")  # fmt: skip
 _TEST_ONLY = ("consignment", "snapshot", "assignments")
 
 
@@ -117,6 +117,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="M",
         help="conveyor: give consignment-consignment contact only to pairs that "
         "start closer than this [m] (default: every pair)",
+    )
+    g.add_argument(
+        "--preview",
+        action="store_true",
+        default=None,
+        help="conveyor: no stepping; write the files of the frames DIR/checkpoint.npz holds "
+        "so far (a run going on in another process, or an interrupted one) to DIR/preview/",
     )
     p.set_defaults(func=run)
 
@@ -262,7 +269,7 @@ def _run_conveyor(args: argparse.Namespace) -> int:
             )  # fmt: skip
         run_, summary, files = conveyor_job(
             snaps, layout, args.out, t_end=t_end, pair_reach=args.pair_reach,
-            progress=progress, extra={"snapshots": sources,
+            progress=progress, preview=bool(args.preview), extra={"snapshots": sources,
                                       "scene_file": None if args.scene is None
                                       else str(args.scene)},
         )  # fmt: skip
@@ -270,7 +277,8 @@ def _run_conveyor(args: argparse.Namespace) -> int:
         print(f"flexparcel run: conveyor failed: {exc}", file=sys.stderr)
         return 1
     print(
-        f"conveyor: {len(layout.placements)} consignments, {summary['simulated_s']:g} s "
+        f"conveyor{' (preview of the checkpoint)' if args.preview else ''}: "
+        f"{len(layout.placements)} consignments, {summary['simulated_s']:g} s "
         f"simulated in {summary['wall_s']:.1f} s wall ({summary['steps']} steps)"
     )
     for name, r in run_.responses.items():

@@ -782,6 +782,7 @@ def run_conveyor(
     progress: Callable[[float, float], None] | None = None,
     jam_time: float = 0.3,
     checkpoint: str | Path | None = None,
+    checkpoint_only: bool = False,
 ) -> ConveyorRun:
     """Build the scene (:func:`build_conveyor_model`), simulate ``t_end`` [s] in (0, 10]
     recording every ``dt_out`` [s], and compute each consignment's responses
@@ -789,7 +790,8 @@ def run_conveyor(
     deflector normal forces of :func:`deflector_normal_forces` as its contact forces).
 
     Integrator defaults: :func:`conveyor_options`. ``checkpoint``: a ``.npz`` path the run
-    saves itself to about once a minute and resumes from (see :func:`flexparcel.simulate`).
+    saves itself to about once a minute and resumes from (see :func:`flexparcel.simulate`);
+    with ``checkpoint_only`` the run is what that file holds so far (no stepping).
     """
     t_end = finite_number("t_end", t_end)
     if not 0.0 < t_end <= 10.0:
@@ -803,7 +805,8 @@ def run_conveyor(
     build_wall = time.perf_counter() - w0
     opts = options or conveyor_options()
     res = simulate(cm.model, t_end, dt_out=dt_out, options=opts, state=cm.state0,
-                   progress=progress, checkpoint=checkpoint)  # fmt: skip
+                   progress=progress, checkpoint=checkpoint,
+                   checkpoint_only=checkpoint_only)  # fmt: skip
     wall = res.stats["wall_s"]["total"]  # with the wall time before a resumption
     forces = deflector_normal_forces(cm, res)
     responses = conveyor_responses(
