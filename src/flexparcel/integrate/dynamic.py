@@ -140,12 +140,12 @@ class IntegratorOptions:
     direction n between iterations and the consistent term flips with it, so Newton cycles
     and the step shrinks; "stick" converges linearly instead, so the state is as accurate as
     ``newton_tol`` allows and no better. Measured on the four-consignment conveyor (25 mm,
-    from settled snapshots, newton_cap_growth 1.05): first 0.01 s "consistent" 463 steps,
-    1,263 iterations, "stick" 102 steps, 369 iterations (55 s against 116 s); but over the
-    first 0.05 s "stick" took 776 s (839 steps, 5,468 iterations) against 703 s for
-    "consistent" (2,098 steps, 4,625 iterations, growth 1.02). On a rigid box sliding along a
-    deflector "stick" needs newton_tol 1e-4 to meet the closed-form speed to 0.5 %
-    (tests/test_conveyor.py)."""
+    from settled snapshots), first 0.01 s: "consistent" 463 steps, 1,263 iterations, 181 s
+    with newton_cap_growth 1.05 (406, 781, 116 s with 1.02); "stick" 102 steps, 369
+    iterations, 55 s (1.05). But over the first 0.05 s "stick" (1.05) took 776 s (839 steps,
+    5,468 iterations) against 703 s for "consistent" (1.02; 2,098 steps, 4,625 iterations).
+    On a rigid box sliding along a deflector "stick" needs newton_tol 1e-4 to meet the
+    closed-form speed to 0.5 % (tests/test_conveyor.py)."""
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.rho_inf <= 1.0:
