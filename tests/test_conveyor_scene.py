@@ -239,6 +239,22 @@ def test_place_snapshot_at_a_node_offset(snapshot_dir):
     assert np.allclose(moved.positions[a.node_ids], pa)  # others copied from `state`
 
 
+def test_content_law_replaces_the_packaging_content_contact(snapshot_dir):
+    from flexparcel.consignments.build import default_packaging_content_law
+    from flexparcel.contact.law import P_C, P_K_T
+
+    snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
+    layout = throughput_layout(snap.build, 2)
+    stiff = build_conveyor_model({"c": snap}, layout).model.contact_laws
+    soft_law = replace(default_packaging_content_law(), stiffness=64.9e3, stick_stiffness=64.9e3)
+    soft = build_conveyor_model({"c": snap}, layout, content_law=soft_law).model.contact_laws
+    assert 649e3 in stiff[:, P_C] and 64.9e3 not in stiff[:, P_C]
+    # the packaging-content law is swapped; the belt, deflector and consignment-consignment
+    # laws stay
+    assert 64.9e3 in soft[:, P_C] and 64.9e3 in soft[:, P_K_T]
+    assert len(soft) == len(stiff) + 1 and 649e3 in soft[:, P_C]
+
+
 def test_pair_reach_keeps_only_neighbours(snapshot_dir):
     snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
     layout = throughput_layout(snap.build, 4)
@@ -381,6 +397,9 @@ def test_conveyor_cli_rejects_bad_input_before_running(tmp_path, capsys):
         capsys, ["run", "conveyor", "--consignments", "KPBW,XX", *out]
     )
     assert "given twice" in _error(capsys, ["run", "conveyor", "--consignments", "KP,KP", *out])
+    assert "--content-stiffness must be in [1, 10000] N/mm, got 0" in _error(
+        capsys, ["run", "conveyor", "--content-stiffness", "0", *out]
+    )
     bad = tmp_path / "bad.toml"
     bad.write_text("format_version = 1\n[belt]\nspeed_m_s = -1\n")
     err = _error(capsys, ["run", "conveyor", "--scene", str(bad), *out])

@@ -21,6 +21,7 @@ import numpy as np
 
 from flexparcel.consignments.build import ConsignmentBuild
 from flexparcel.consignments.snapshot import Snapshot
+from flexparcel.contact.law import ContactLaw
 from flexparcel.scenarios.conveyor_scene import ConveyorRun, SceneLayout
 
 __all__ = [
@@ -135,6 +136,7 @@ def conveyor_job(
     extra: dict | None = None,
     animation_frames: int = 60,
     preview: bool = False,
+    content_law: ContactLaw | None = None,
 ) -> tuple[ConveyorRun, dict, dict[str, str]]:
     """Run the scene and write the files of the module docstring. Returns the run, the
     ``responses.json`` content and the written paths (name -> path).
@@ -165,7 +167,7 @@ def conveyor_job(
     try:
         run = run_conveyor(snapshots, layout, t_end, dt_out=dt_out, pair_reach=pair_reach,
                            progress=bar, checkpoint=checkpoint,
-                           checkpoint_only=preview)  # fmt: skip
+                           checkpoint_only=preview, content_law=content_law)  # fmt: skip
     finally:
         bar.done()
     if preview:
@@ -178,6 +180,7 @@ def conveyor_job(
         "t_end_s": t_end,
         "dt_out_s": dt_out,
         "pair_reach_m": pair_reach,
+        "content_stiffness_N_per_mm": None if content_law is None else content_law.stiffness * 1e-3,
         "element_size_mm": {k: s.build.element_size * 1e3 for k, s in snapshots.items()},
     }
     summary.update(extra or {})

@@ -14,7 +14,7 @@ __all__ = ["register", "run"]
 TESTS = ("swing", "drop-vertical", "drop-horizontal")  # as cli.consignment_jobs.TESTS
 SCENARIOS = (*TESTS, "conveyor")
 _CONVEYOR_ONLY = ("consignments", "belt_speed", "deflector_angle", "scene", "snapshot_dir",
-                  "pair_reach", "start_speed", "preview")  # fmt: skip
+                  "pair_reach", "start_speed", "preview", "content_stiffness")  # fmt: skip
 _TEST_ONLY = ("consignment", "snapshot", "assignments")
 
 
@@ -119,6 +119,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "start closer than this [m] (default: every pair)",
     )
     g.add_argument(
+        "--content-stiffness",
+        type=float,
+        default=None,
+        metavar="N_PER_MM",
+        help="conveyor: packaging-content contact stiffness c [N/mm] (and stick stiffness "
+        "k_t = c) of every consignment (default: Table 6's 649, as assembled); softer is "
+        "faster and lets the film settle deeper on its content",
+    )
+    g.add_argument(
         "--preview",
         action="store_true",
         default=None,
@@ -221,7 +230,9 @@ def _run_conveyor(args: argparse.Namespace) -> int:
     for opt, v, lo, hi, unit in (("--belt-speed", args.belt_speed, 0.0, 10.0, "m/s"),
                                  ("--deflector-angle", args.deflector_angle, 10.0, 90.0, "deg"),
                                  ("--start-speed", args.start_speed, 0.0, 10.0, "m/s"),
-                                 ("--pair-reach", args.pair_reach, 0.0, 1e3, "m")):  # fmt: skip
+                                 ("--pair-reach", args.pair_reach, 0.0, 1e3, "m"),
+                                 ("--content-stiffness", args.content_stiffness, 1.0, 1e4,
+                                  "N/mm")):  # fmt: skip
         if v is not None and not lo <= v <= hi:
             raise ValueError(f"{opt} must be in [{lo:g}, {hi:g}] {unit}, got {v:g}")
     conveyor = scene.conveyor if scene is not None else paper_conveyor()
@@ -259,6 +270,14 @@ def _run_conveyor(args: argparse.Namespace) -> int:
         kw = {} if gap is None else {"gap_above_belt": gap}
         layout = default_layout(builds, conveyor, speed=start, **kw)
     check_layout(layout, builds)  # before any (long) assembly
+    content_law = None
+    if args.content_stiffness is not None:
+        from dataclasses import replace
+
+        from flexparcel.consignments.build import default_packaging_content_law
+
+        c = args.content_stiffness * 1e3
+        content_law = replace(default_packaging_content_law(), stiffness=c, stick_stiffness=c)
     progress = not args.no_progress
     try:
         snaps, sources = {}, {}
@@ -269,7 +288,8 @@ def _run_conveyor(args: argparse.Namespace) -> int:
             )  # fmt: skip
         run_, summary, files = conveyor_job(
             snaps, layout, args.out, t_end=t_end, pair_reach=args.pair_reach,
-            progress=progress, preview=bool(args.preview), extra={"snapshots": sources,
+            progress=progress, preview=bool(args.preview), content_law=content_law,
+            extra={"snapshots": sources,
                                       "scene_file": None if args.scene is None
                                       else str(args.scene)},
         )  # fmt: skip
