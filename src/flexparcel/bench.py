@@ -176,14 +176,12 @@ def _conveyor(
     from flexparcel.io.checkpoint import CheckpointError, load_checkpoint
 
     ckpt = Path(work) / "run" / CHECKPOINT_FILE
-    resumed = False
-    if ckpt.exists():
-        try:
-            resumed = not load_checkpoint(ckpt).header["complete"]
-        except CheckpointError:
-            resumed = False
-        if not resumed:
-            ckpt.unlink()
+    try:
+        resumed = not load_checkpoint(ckpt).header["complete"]
+    except (FileNotFoundError, CheckpointError):  # none, or unreadable: start over
+        resumed = False
+    if not resumed:
+        ckpt.unlink(missing_ok=True)
     run, summary, files = conveyor_job(snaps, layout, Path(work) / "run", t_end=t_end,
                                        progress=shown)  # fmt: skip
     st = run.result.stats
