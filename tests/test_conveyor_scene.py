@@ -400,6 +400,10 @@ def test_conveyor_cli_rejects_bad_input_before_running(tmp_path, capsys):
     assert "--content-stiffness must be in [1, 10000] N/mm, got 0" in _error(
         capsys, ["run", "conveyor", "--content-stiffness", "0", *out]
     )
+    # the benchmark takes the same option, checked before any run
+    assert "--content-stiffness must be in [1, 10000] N/mm, got 20000" in _error(
+        capsys, ["bench", "conveyor", "--content-stiffness", "2e4", *out]
+    )
     bad = tmp_path / "bad.toml"
     bad.write_text("format_version = 1\n[belt]\nspeed_m_s = -1\n")
     err = _error(capsys, ["run", "conveyor", "--scene", str(bad), *out])

@@ -154,6 +154,7 @@ def _conveyor(
     snapshot_dir: str | Path | None = None,
     work: str | Path = "out/bench-conveyor",
     start_speed: float = 0.0,
+    content_stiffness_n_per_mm: float | None = None,
 ) -> dict:
     """The paper's bulk scene (:func:`~flexparcel.scenarios.conveyor_scene.default_layout`
     on :func:`~flexparcel.scenarios.conveyor_scene.paper_conveyor`, 1.6 m/s, 45 deg) for
@@ -161,8 +162,10 @@ def _conveyor(
     ``snapshot_dir`` or assembled into ``work`` (assembly time reported apart). The run
     writes what ``flexparcel run conveyor`` writes (responses, snapshots picture, animation,
     trajectories, ParaView) to ``work/run``, so the benchmarked run is the one people look
-    at; the files' time is not in ``wall_s``."""
-    from flexparcel.cli.conveyor_job import conveyor_job
+    at; the files' time is not in ``wall_s``. ``content_stiffness_n_per_mm``: the
+    packaging-content contact (:func:`~flexparcel.cli.conveyor_job.content_law_for`; None:
+    Table 6's)."""
+    from flexparcel.cli.conveyor_job import content_law_for, conveyor_job
     from flexparcel.scenarios.conveyor_scene import default_layout
 
     t_end = (0.005 if quick else 2.0) if t_end is None else float(t_end)
@@ -182,8 +185,9 @@ def _conveyor(
         resumed = False
     if not resumed:
         ckpt.unlink(missing_ok=True)
+    law = content_law_for(content_stiffness_n_per_mm)
     run, summary, files = conveyor_job(snaps, layout, Path(work) / "run", t_end=t_end,
-                                       progress=shown)  # fmt: skip
+                                       progress=shown, content_law=law)  # fmt: skip
     st = run.result.stats
     recurdyn_s = RECURDYN_CONVEYOR_WALL_S * t_end / 2.0
     return {
@@ -193,6 +197,7 @@ def _conveyor(
         "consignments": list(snaps),
         "element_size_mm": {k: s.build.element_size * 1e3 for k, s in snaps.items()},
         "start_speed_m_s": start_speed,
+        "content_stiffness_N_per_mm": content_stiffness_n_per_mm,
         "simulated_s": t_end,
         "wall_s": run.wall_s,
         "resumed_from_checkpoint": resumed,

@@ -58,6 +58,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="conveyor: initial speed of the consignments along the belt [m/s]",
     )
     g.add_argument(
+        "--content-stiffness",
+        type=float,
+        default=None,
+        metavar="N_PER_MM",
+        help="conveyor: packaging-content contact stiffness [N/mm] in [1, 10000] (default: "
+        "Table 6's 649), as in 'run conveyor'",
+    )
+    g.add_argument(
         "--snapshot-dir",
         type=Path,
         default=None,
@@ -96,6 +104,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--t-end must be in (0, 10] s, got {args.t_end:g}")
     if args.element_size is not None and not 1.0 <= args.element_size <= 100.0:
         raise ValueError(f"--element-size must be in [1, 100] mm, got {args.element_size:g}")
+    if args.content_stiffness is not None:
+        from flexparcel.cli.conveyor_job import content_law_for
+
+        content_law_for(args.content_stiffness)  # its range, before any run
     work = Path(args.out).parent / "bench-conveyor"
     common = {"t_end": args.t_end, "snapshot_dir": args.snapshot_dir, "work": work}
     options = {
@@ -104,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
             "consignments": [c.strip() for c in args.conveyor_consignments.split(",")],
             "element_size_mm": 25.0 if args.element_size is None else args.element_size,
             "start_speed": args.start_speed,
+            "content_stiffness_n_per_mm": args.content_stiffness,
         },
         "consignment-assembly": {"element_size_mm": args.element_size},
         "kpbw-tests": {"element_size_mm": args.element_size},

@@ -35,6 +35,23 @@ __all__ = [
 CHECKPOINT_FILE = "checkpoint.npz"
 
 
+def content_law_for(stiffness_n_per_mm: float | None) -> ContactLaw | None:
+    """The packaging-content contact law with stiffness c = ``stiffness_n_per_mm`` [N/mm] in
+    [1, 1e4] (stick stiffness k_t = c, damping kept), or None (Table 6's law, as assembled)
+    when not given; the ``--content-stiffness`` option of ``run conveyor`` and the bench."""
+    if stiffness_n_per_mm is None:
+        return None
+    from dataclasses import replace
+
+    from flexparcel.consignments.build import default_packaging_content_law
+
+    v = float(stiffness_n_per_mm)
+    if not 1.0 <= v <= 1e4:
+        raise ValueError(f"--content-stiffness must be in [1, 10000] N/mm, got {v:g}")
+    c = v * 1e3
+    return replace(default_packaging_content_law(), stiffness=c, stick_stiffness=c)
+
+
 def _cache_dir(out: Path, key: str, build: ConsignmentBuild) -> Path:
     return out / "snapshots" / f"{key}_{build.element_size * 1e3:g}mm"
 

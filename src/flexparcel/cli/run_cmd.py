@@ -198,7 +198,12 @@ def run(args: argparse.Namespace) -> int:
 def _run_conveyor(args: argparse.Namespace) -> int:
     import sys
 
-    from flexparcel.cli.conveyor_job import conveyor_job, parse_consignment_list, snapshot_for
+    from flexparcel.cli.conveyor_job import (
+        content_law_for,
+        conveyor_job,
+        parse_consignment_list,
+        snapshot_for,
+    )
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
     from flexparcel.integrate.errors import ConvergenceError
@@ -230,9 +235,7 @@ def _run_conveyor(args: argparse.Namespace) -> int:
     for opt, v, lo, hi, unit in (("--belt-speed", args.belt_speed, 0.0, 10.0, "m/s"),
                                  ("--deflector-angle", args.deflector_angle, 10.0, 90.0, "deg"),
                                  ("--start-speed", args.start_speed, 0.0, 10.0, "m/s"),
-                                 ("--pair-reach", args.pair_reach, 0.0, 1e3, "m"),
-                                 ("--content-stiffness", args.content_stiffness, 1.0, 1e4,
-                                  "N/mm")):  # fmt: skip
+                                 ("--pair-reach", args.pair_reach, 0.0, 1e3, "m")):  # fmt: skip
         if v is not None and not lo <= v <= hi:
             raise ValueError(f"{opt} must be in [{lo:g}, {hi:g}] {unit}, got {v:g}")
     conveyor = scene.conveyor if scene is not None else paper_conveyor()
@@ -270,14 +273,7 @@ def _run_conveyor(args: argparse.Namespace) -> int:
         kw = {} if gap is None else {"gap_above_belt": gap}
         layout = default_layout(builds, conveyor, speed=start, **kw)
     check_layout(layout, builds)  # before any (long) assembly
-    content_law = None
-    if args.content_stiffness is not None:
-        from dataclasses import replace
-
-        from flexparcel.consignments.build import default_packaging_content_law
-
-        c = args.content_stiffness * 1e3
-        content_law = replace(default_packaging_content_law(), stiffness=c, stick_stiffness=c)
+    content_law = content_law_for(args.content_stiffness)
     progress = not args.no_progress
     try:
         snaps, sources = {}, {}
