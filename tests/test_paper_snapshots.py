@@ -1,0 +1,39 @@
+"""The shipped snapshots of the four paper consignments (data/paper-snapshots-25mm): they
+load, were assembled from today's Table 2 presets at 25 mm, ended at rest, and today's
+builders make the meshes they hold (placing them into the paper scene checks every node)."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flexparcel.cli.consignment_jobs import check_snapshot_matches
+from flexparcel.consignments.build import ConsignmentBuild
+from flexparcel.consignments.snapshot import load_snapshot
+from flexparcel.scenarios.conveyor_scene import build_conveyor_model, default_layout
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "paper-snapshots-25mm"
+KEYS = ("KPBW", "PB", "KP", "BW")
+
+
+@pytest.fixture(scope="module")
+def snapshots():
+    return {k: load_snapshot(DATA / f"{k}.npz") for k in KEYS}
+
+
+@pytest.mark.parametrize("key", KEYS)
+def test_snapshot_is_the_preset_at_25_mm_and_at_rest(snapshots, key):
+    snap = snapshots[key]
+    check_snapshot_matches(snap, ConsignmentBuild.of(key, element_size=0.025), 0.025)
+    assert snap.info["at_rest"] is True
+    assert snap.info["kinetic_energy_J"] < 2e-6  # the assembly's rest bound
+    assert np.all(np.isfinite(snap.positions))
+
+
+def test_snapshots_place_into_the_paper_scene(snapshots):
+    builds = {k: s.build for k, s in snapshots.items()}
+    cm = build_conveyor_model(snapshots, default_layout(builds))
+    # 1,128 + 3,030 + 1,902 + 690 DOF (the assembly reports) and the belt and deflectors
+    assert cm.model.dof_count == 6750
+    for name, nodes in cm.node_sets().items():
+        assert cm.state0.positions[nodes, 2].min() > 0.0, name  # above the belt surface z = 0
