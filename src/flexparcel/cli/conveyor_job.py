@@ -26,6 +26,7 @@ from flexparcel.scenarios.conveyor_scene import ConveyorRun, SceneLayout
 
 __all__ = [
     "CHECKPOINT_FILE",
+    "content_law_for",
     "snapshot_for",
     "conveyor_job",
     "snapshot_times",
