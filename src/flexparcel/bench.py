@@ -169,6 +169,7 @@ def _conveyor(
     from flexparcel.scenarios.conveyor_scene import default_layout
 
     t_end = (0.005 if quick else 2.0) if t_end is None else float(t_end)
+    law = content_law_for(content_stiffness_n_per_mm)  # a bad value fails before any assembly
     snaps, assembly_wall = _conveyor_snapshots(consignments, element_size_mm, snapshot_dir,
                                                Path(work))  # fmt: skip
     layout = default_layout({k: s.build for k, s in snaps.items()}, speed=start_speed)
@@ -185,7 +186,6 @@ def _conveyor(
         resumed = False
     if not resumed:
         ckpt.unlink(missing_ok=True)
-    law = content_law_for(content_stiffness_n_per_mm)
     run, summary, files = conveyor_job(snaps, layout, Path(work) / "run", t_end=t_end,
                                        progress=shown, content_law=law)  # fmt: skip
     st = run.result.stats
