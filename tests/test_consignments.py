@@ -85,6 +85,32 @@ def test_preset_mass_and_flat_size(name):
         assert c.glue.size > 0  # the content is glued to the bottom layer (FDR stripe)
 
 
+def test_flexible_content_and_film_contact_both_ways():
+    # PB's hex block: film nodes against the block's boundary faces, and the block's boundary
+    # nodes against the film faces; with the first alone the block's corners and edges slip
+    # between the film nodes (found in the conveyor scene at 25 mm)
+    build = ConsignmentBuild.of("PB", element_size=0.025)
+    b = ModelBuilder()
+    c = add_consignment(b, build)
+    model = b.finalize()
+    assert c.content_body is None
+    q = model.positions0[c.content_nodes]
+    lo, hi = q.min(axis=0), q.max(axis=0)
+    on_surface = np.any(np.isclose(q, lo) | np.isclose(q, hi), axis=1)
+    assert 0 < on_surface.sum() < len(q)  # the block has inner nodes: only its surface counts
+    film, content = set(c.packaging.tolist()), set(c.content_nodes.tolist())
+    pairs = {}  # (whose nodes, whose faces) -> nodes
+    for nodes, tris, *_ in model.face_sets:
+        faces = "film" if set(tris.ravel().tolist()) <= film else "content"
+        assert set(tris.ravel().tolist()) <= (film if faces == "film" else content)
+        who = "film" if set(nodes.tolist()) <= film else "content"
+        assert set(nodes.tolist()) <= (film if who == "film" else content)
+        pairs.setdefault((who, faces), set()).update(nodes.tolist())
+    assert pairs[("film", "content")] == film  # every film node against the block's faces
+    assert pairs[("content", "film")] == set(c.content_nodes[on_surface].tolist())
+    assert ("content", "content") not in pairs
+
+
 def test_builds_number_nodes_identically():
     # snapshots rely on it: two equal builds give the same mesh
     build = ConsignmentBuild.of("BW", element_size=0.02)

@@ -8,11 +8,13 @@ simulated seconds per wall second and as the ratio to the paper's RecurDyn time 
 from __future__ import annotations
 
 import json
+import os
 import platform
 import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numba
 import numpy as np
 
 __all__ = [
@@ -492,6 +494,11 @@ def run_benchmarks(
             "processor": platform.processor(),
             "machine": platform.machine(),
             "numpy": np.__version__,
+            # the thread settings change the timings: numba's kernels run on
+            # numba_threads, the block factorisations on one thread per CPU
+            "cpu_count": os.cpu_count(),
+            "numba_threads": numba.get_num_threads(),
+            "omp_num_threads": os.environ.get("OMP_NUM_THREADS"),
         },
         "quick": quick,
         "results": results,
