@@ -289,14 +289,17 @@ def add_consignment(
             content_mass / volume, FLEXIBLE_CONTENT["damping_ratio"],
         )  # fmt: skip
         content_nodes = b.add_solid_mesh(sp_, cells, "hex8", material=solid)
-        # Two-way node-to-face contact (two passes, as in the symmetric penalty method of
-        # Wriggers, Computational Contact Mechanics, 2006, sec. 5.2): film nodes against the
-        # content's boundary faces, and the content's boundary nodes against the film faces.
-        # One pass alone lets the block's corners and edges slip between the film nodes
-        # (measured on PB at 25 mm in the conveyor: a content node 6.7 mm below the belt).
+        # Node-to-face contact both ways (the two-pass method, Wriggers, Computational
+        # Contact Mechanics, 2006, sec. 5.2): film nodes against the block's boundary faces,
+        # and the block's edge and corner nodes against the film faces. With the first pass
+        # alone the block's edges slip between the film nodes, where a film face spans the
+        # corner as a chord (measured on PB at 25 mm in the conveyor: a content node 6.7 mm
+        # below the belt). A flat face of the block cannot cross a film lying on it, so its
+        # inner nodes are left out of the second pass: measured on PB's assembly at 25 mm,
+        # all boundary nodes in it took 10,662 steps against 3,984 with the first pass alone.
         b.add_face_contact(ids, content_nodes, law, thickness=t / 2, schedule=sched)
         b.add_face_contact(
-            content_nodes[_block_surface(sp_)], ids, law, thickness=t / 2, schedule=sched
+            content_nodes[_block_edges(sp_)], ids, law, thickness=t / 2, schedule=sched
         )
     if self_contact:
         b.add_self_contact(ids, law, thickness=t)
@@ -319,11 +322,12 @@ def add_consignment(
     )
 
 
-def _block_surface(points: np.ndarray) -> np.ndarray:
-    """Mask (n,) of the points of a block of :func:`_hex_block` on its boundary."""
+def _block_edges(points: np.ndarray) -> np.ndarray:
+    """Mask (n,) of the points of a block of :func:`_hex_block` on its edges and corners (on
+    two or three of its six faces)."""
     lo, hi = points.min(axis=0), points.max(axis=0)
     tol = 1e-9 * float(np.max(hi - lo))
-    return np.any((points <= lo + tol) | (points >= hi - tol), axis=1)
+    return ((points <= lo + tol) | (points >= hi - tol)).sum(axis=1) >= 2
 
 
 def _hex_block(lx: float, ly: float, lz: float, h: float, centre) -> tuple[np.ndarray, np.ndarray]:
