@@ -5,6 +5,7 @@ import pytest
 import scipy.sparse as sp
 
 import flexparcel as fp
+from flexparcel.integrate import linear
 from flexparcel.integrate.linear import (
     BlockSuperLU,
     LinearSolver,
@@ -65,22 +66,68 @@ def test_block_superlu_reports_a_singular_block():
 
 def test_backend_names():
     assert isinstance(make_linear_solver("superlu-blocks"), BlockSuperLU)
-    with pytest.raises(ValueError, match="'superlu', 'superlu-blocks' or 'pardiso', got 'lu'"):
+    with pytest.raises(
+        ValueError,
+        match="one of 'superlu', 'superlu-blocks', 'superlu-blocks-mixed', 'pardiso', got 'lu'",
+    ):
         make_linear_solver("lu")
     with pytest.raises(ValueError, match="workers must be >= 1"):
         BlockSuperLU(0)
 
 
-def test_block_backend_gives_the_same_motion():
+@pytest.mark.parametrize("backend", ["superlu-blocks", "superlu-blocks-mixed"])
+def test_block_backend_gives_the_same_motion(backend):
     # two separate sheets and a box: three independent blocks until the sheets touch; the
-    # block factorisation solves the same Newton systems (orderings differ: round-off), so
-    # the motion agrees far inside the Newton tolerance (newton_tol * tol_displacement =
-    # 1e-6 m)
+    # block factorisation solves the same Newton systems (orderings differ: round-off; the
+    # mixed backend refines to a double-precision backward error), so the motion agrees far
+    # inside the Newton tolerance (newton_tol * tol_displacement = 1e-6 m)
     from test_checkpoint import _scene
 
     model, s0 = _scene()
     r0 = fp.simulate(model, 0.03, dt_out=0.01, state=s0)
-    opt = fp.IntegratorOptions(linear_solver="superlu-blocks")
+    opt = fp.IntegratorOptions(linear_solver=backend)
     r1 = fp.simulate(model, 0.03, dt_out=0.01, state=s0, options=opt)
     assert r1.stats["steps"] == r0.stats["steps"]
     assert np.abs(r1.positions - r0.positions).max() < 1e-9
+
+
+def _backward_error(a, x, b):
+    """Componentwise backward error max_i |b - A x|_i / (|A| |x| + |b|)_i (Oettli-Prager)."""
+    return float(np.max(np.abs(b - a @ x) / (abs(a) @ np.abs(x) + np.abs(b))))
+
+
+@pytest.mark.parametrize("sizes", [(40,), (40, 7, 1, 25)])
+def test_mixed_precision_refines_to_a_double_precision_solution(sizes):
+    a = _blocks(sizes, seed=3)
+    b = np.random.default_rng(4).standard_normal(a.shape[0])
+    ref = LinearSolver()
+    ref.factor(a)
+    s = make_linear_solver("superlu-blocks-mixed")
+    s.factor(a)
+    # the factors alone: single precision (unit round-off 6e-8), far from double's
+    assert _backward_error(a, s.precondition(b), b) > 1e-10
+    x = s.solve(b)
+    assert _backward_error(a, x, b) <= linear.REFINE_TOL
+    np.testing.assert_allclose(x, ref.solve(b), rtol=1e-12, atol=1e-14)
+    assert s.refinement_steps >= 1 and s.double_fallbacks == 0
+    s.close()
+
+
+def test_mixed_precision_falls_back_to_double_when_refinement_cannot_converge():
+    # cond(A) = 1e10: single precision's error cond * 6e-8 >> 1, so refinement cannot
+    # contract and the matrix is factorised in double precision
+    rng = np.random.default_rng(5)
+    n = 30
+    u, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    v, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    a = sp.csr_matrix(u @ np.diag(np.logspace(0, -10, n)) @ v.T)
+    b = rng.standard_normal(n)
+    s = make_linear_solver("superlu-blocks-mixed")
+    s.factor(a)
+    x = s.solve(b)
+    assert s.double_fallbacks == 1
+    ref = LinearSolver()
+    ref.factor(a)
+    # the same double-precision LU as the plain backend, bit for bit
+    np.testing.assert_array_equal(x, ref.solve(b))
+    s.close()

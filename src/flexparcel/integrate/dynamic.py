@@ -132,6 +132,10 @@ class IntegratorOptions:
     Newton converges linearly; measured 2 iterations per step on the sheet swing) or
     "consistent": exact derivative by complex step (quadratic convergence, ~10x costlier)."""
     linear_solver: str = "superlu"
+    """Backend of :func:`flexparcel.integrate.linear.make_linear_solver`: "superlu",
+    "superlu-blocks" (one factorisation per independent block, in parallel),
+    "superlu-blocks-mixed" (the same in single precision, refined to a double-precision
+    solution) or "pardiso"."""
     friction_tangent: str = "consistent"
     """Newton tangent of a slipping stick-model contact: "consistent" (the return map's exact
     derivative, -mu F_N (I - n n^T)/|a| + the mu(v) term) or "stick" (-k_t I as while sticking).
