@@ -131,3 +131,18 @@ def test_mixed_precision_falls_back_to_double_when_refinement_cannot_converge():
     # the same double-precision LU as the plain backend, bit for bit
     np.testing.assert_array_equal(x, ref.solve(b))
     s.close()
+
+
+def test_mixed_precision_factorises_in_double_where_single_loses_a_pivot():
+    # [[1, 1], [1, 1 + 1e-10]]: the second pivot is 1e-10 in double precision and exactly 0
+    # once the matrix is rounded to single precision (unit round-off 6e-8)
+    a = sp.csr_matrix(np.array([[1.0, 1.0], [1.0, 1.0 + 1e-10]]))
+    b = np.array([2.0, 2.0 + 1e-10])  # x = (1, 1)
+    s = make_linear_solver("superlu-blocks-mixed")
+    s.factor(a)
+    assert s.double_fallbacks == 1 and s.factor_count == 1
+    ref = LinearSolver()
+    ref.factor(a)
+    np.testing.assert_array_equal(s.solve(b), ref.solve(b))
+    assert s.refinement_steps == 0
+    s.close()

@@ -141,12 +141,10 @@ class BlockSuperLU(LinearSolver):
 
     def factor(self, a: sp.csr_matrix) -> None:
         a = a.tocsr()
-        if self.mixed_precision:
-            self._a = a
-            self._abs_a = abs(a)
         if not self.mixed_precision:
             self._factor_blocks(a, np.float64)
         else:
+            self._a, self._abs_a = a, abs(a)  # for the refinement's residuals
             try:
                 self._factor_blocks(a, np.float32)
             except SingularMatrixError:  # a pivot lost in single precision: try double
@@ -166,7 +164,7 @@ class BlockSuperLU(LinearSolver):
         for k in np.argsort(-sizes, kind="stable"):
             w = int(np.argmin(load))
             i, j = bounds[k], bounds[k + 1]
-            share[w].append((order[i:j], ap[i:j, i:j].astype(dtype)))
+            share[w].append((order[i:j], ap[i:j, i:j].astype(dtype, copy=False)))
             load[w] += float(sizes[k]) ** 1.5
         for f in [w.factor(blocks) for w, blocks in zip(self.workers, share, strict=True)]:
             f.result()  # re-raises SingularMatrixError
