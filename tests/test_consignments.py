@@ -13,12 +13,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexparcel.consignments.assembly import AssemblySettings, assemble, content_scale_for
+from flexparcel.consignments.assembly import (
+    AssemblySettings,
+    assemble,
+    content_outside_packaging,
+    content_scale_for,
+)
 from flexparcel.consignments.build import (
     FIT_CLEARANCE,
+    FLEXIBLE_CONTENT_EDGE_RADIUS,
     GLUED_STRIP_WIDTH,
     PRESETS,
     ConsignmentBuild,
+    _block_edges,
+    _hex_block,
+    _round_block,
     add_consignment,
 )
 from flexparcel.consignments.snapshot import (
@@ -94,9 +103,12 @@ def test_flexible_content_and_film_contact_both_ways():
     c = add_consignment(b, build)
     model = b.finalize()
     assert c.content_body is None
-    q = model.positions0[c.content_nodes]
-    lo, hi = q.min(axis=0), q.max(axis=0)
-    on_faces = (np.isclose(q, lo) | np.isclose(q, hi)).sum(axis=1)
+    # the block's lattice before its edges were rounded (same node order)
+    s = PRESETS["PB"]
+    sharp, _ = _hex_block(*(np.array([s.content_length_mm, s.content_width_mm,
+                                      s.content_height_mm]) * 1e-3), 0.025, (0, 0, 0))  # fmt: skip
+    lo, hi = sharp.min(axis=0), sharp.max(axis=0)
+    on_faces = (np.isclose(sharp, lo) | np.isclose(sharp, hi)).sum(axis=1)
     on_edges = on_faces >= 2  # the block's edges and corners
     assert 0 < on_edges.sum() < (on_faces >= 1).sum()  # and face-inner nodes are left out
     film, content = set(c.packaging.tolist()), set(c.content_nodes.tolist())
@@ -110,6 +122,57 @@ def test_flexible_content_and_film_contact_both_ways():
     assert pairs[("film", "content")] == film  # every film node against the block's faces
     assert pairs[("content", "film")] == set(c.content_nodes[on_edges].tolist())
     assert ("content", "content") not in pairs
+
+
+def test_flexible_content_edges_are_rounded_and_its_mass_kept():
+    # PB's granulate block has its edges rounded with half its height (a fold): face nodes
+    # stay on the box's faces, edge nodes lie on quarter cylinders and corners on sphere
+    # octants of that radius round the inner box, and the content keeps Table 2's mass
+    build = ConsignmentBuild.of("PB", element_size=0.025)
+    b = ModelBuilder()
+    c = add_consignment(b, build)
+    model = b.finalize()
+    s = build.spec
+    size = np.array([s.content_length_mm, s.content_width_mm, s.content_height_mm]) * 1e-3
+    r = FLEXIBLE_CONTENT_EDGE_RADIUS * size[2]
+    q = model.positions0[c.content_nodes]
+    centre = 0.5 * (q.min(axis=0) + q.max(axis=0))
+    np.testing.assert_allclose(q.max(axis=0) - q.min(axis=0), size, rtol=1e-12)
+    inner = np.maximum(size / 2 - r, 0.0)
+    dist = np.linalg.norm(q - np.clip(q, centre - inner, centre + inner), axis=1)
+    sharp, _ = _hex_block(*size, 0.025, centre)
+    on_edges = _block_edges(sharp)
+    corners = (np.isclose(sharp, sharp.min(axis=0)) | np.isclose(sharp, sharp.max(axis=0))).all(1)
+    assert corners.sum() == 8
+    np.testing.assert_allclose(dist[on_edges], r, rtol=1e-12)  # on the rounded surface
+    assert np.all(dist <= r * (1 + 1e-12))  # nothing outside it
+    moved = np.linalg.norm(q - sharp, axis=1)
+    assert np.all(moved[~on_edges] < 1e-12)  # face and interior nodes stay
+    # a corner moves by r (sqrt 3 - 1) along the diagonal, an edge node by r (sqrt 2 - 1)
+    np.testing.assert_allclose(moved[corners], r * (np.sqrt(3) - 1), rtol=1e-12)
+    assert np.all(moved[on_edges & ~corners] <= r * (np.sqrt(2) - 1) * (1 + 1e-12))
+    content_mass = model.mass[c.content_nodes, 0].sum()
+    np.testing.assert_allclose(content_mass, c.content_mass, rtol=1e-12)
+    np.testing.assert_allclose(content_mass + c.packaging_mass, s.mass_g * 1e-3, rtol=1e-12)
+    with pytest.raises(ValueError, match="edge radius must lie in"):
+        _round_block(sharp, 0.6 * size[2])
+
+
+def test_content_outside_packaging_by_ray_parity():
+    # BW's flat packaging (two layers 2 mm apart, joined at the rim: a closed surface) and
+    # its content node put inside it (the centre: its vertical rays pass at film nodes), above
+    # it, below it and beside it
+    b = ModelBuilder()
+    c = add_consignment(b, ConsignmentBuild.of("BW", element_size=0.05))
+    model = b.finalize()
+    pos = model.positions0.copy()
+    lo, hi = pos[c.packaging].min(axis=0), pos[c.packaging].max(axis=0)
+    inside = 0.5 * (lo + hi)
+    pos[c.content_nodes[0]] = inside
+    assert content_outside_packaging(model, c, pos).size == 0
+    for outside in (inside + [0, 0, 0.01], inside + [hi[0] - lo[0], 0, 0], inside - [0, 0, 0.01]):
+        pos[c.content_nodes[0]] = outside
+        assert np.array_equal(content_outside_packaging(model, c, pos), c.content_nodes)
 
 
 def test_builds_number_nodes_identically():

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from flexparcel.cli.consignment_jobs import check_snapshot_matches
-from flexparcel.consignments.build import ConsignmentBuild
+from flexparcel.consignments.assembly import content_outside_packaging
+from flexparcel.consignments.build import ConsignmentBuild, _hex_block, add_consignment
 from flexparcel.consignments.snapshot import load_snapshot
+from flexparcel.model.builder import ModelBuilder
 from flexparcel.scenarios.conveyor_scene import build_conveyor_model, default_layout
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "paper-snapshots-25mm"
@@ -38,3 +40,23 @@ def test_snapshots_place_into_the_paper_scene(snapshots):
     assert cm.model.dof_count == 6750
     for name, nodes in cm.node_sets().items():
         assert cm.state0.positions[nodes, 2].min() > 0.0, name  # above the belt surface z = 0
+
+
+def test_pb_film_holds_its_content(snapshots):
+    # PB's assembled film must hold its content block: no block corner outside the closed film
+    # (ray parity), and no content node below the film's lowest node, since only the film
+    # touches the belt. The snapshot assembled with sharp block corners had 4 corners outside,
+    # up to 6.6 mm under the film's rim, and they sank into the belt in the conveyor scene.
+    snap = snapshots["PB"]
+    b = ModelBuilder()
+    c = add_consignment(b, snap.build)
+    model = b.finalize()
+    outside = content_outside_packaging(model, c, snap.positions)
+    s = snap.build.spec
+    size = np.array([s.content_length_mm, s.content_width_mm, s.content_height_mm]) * 1e-3
+    sharp, _ = _hex_block(*size, 0.025, (0.0, 0.0, 0.0))  # the block's lattice, node order
+    corner = (np.isclose(sharp, sharp.min(axis=0)) | np.isclose(sharp, sharp.max(axis=0))).all(1)
+    assert corner.sum() == 8
+    assert not np.isin(c.content_nodes[corner], outside).any()
+    z = snap.positions[:, 2]
+    assert z[c.content_nodes].min() >= z[c.packaging].min()

@@ -46,6 +46,7 @@ __all__ = [
     "AssemblyError",
     "assemble",
     "content_scale_for",
+    "content_outside_packaging",
     "opening_clearance",
 ]
 
@@ -295,6 +296,47 @@ def _settle_deadline(st: AssemblySettings, t_open: float, f0: float) -> float:
     return t_open + st.release_time + (st.growth_time if f0 < 1.0 else 0.0) + st.max_settle_time
 
 
+def _ray_crossings(points: np.ndarray, tri: np.ndarray, up: bool) -> np.ndarray:
+    """Number of triangles (t, 3, 3) [m] that the vertical ray from each point (n, 3) [m]
+    crosses (along +z if ``up``, else -z): the ray-triangle test of Moeller & Trumbore
+    (J. Graphics Tools 2, 1997), which for a vertical ray reduces to 2D barycentric
+    coordinates of the point in the triangle's top view and the height of the crossing."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    e1, e2 = (b - a)[:, :2], (c - a)[:, :2]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]  # top-view area x 2
+    ok = np.abs(det) > 1e-18
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    d = points[:, None, :2] - a[None, :, :2]  # (n, t, 2)
+    u = (d[..., 0] * e2[:, 1] - d[..., 1] * e2[:, 0]) * inv
+    v = (e1[:, 0] * d[..., 1] - e1[:, 1] * d[..., 0]) * inv
+    z = a[:, 2] + u * (b[:, 2] - a[:, 2]) + v * (c[:, 2] - a[:, 2])
+    above = z > points[:, None, 2] if up else z < points[:, None, 2]
+    return (ok & (u >= 0) & (v >= 0) & (u + v <= 1) & above).sum(axis=1)
+
+
+def content_outside_packaging(model: Model, c: Consignment, positions: np.ndarray) -> np.ndarray:
+    """Ids of ``c``'s content nodes that lie outside its closed packaging at ``positions``
+    (node_count, 3) [m]: a point is inside a closed surface when a ray from it crosses the
+    surface an odd number of times (Jordan curve theorem). A node counts as outside only when
+    the rays up and down both say so, which keeps a ray through a film edge (counted twice)
+    from misjudging it. Meaningful once the packaging is closed round its content (after the
+    assembly), not for the flat packaging before its opening.
+
+    For a rigid content the node is its centre of mass."""
+    film = np.zeros(model.node_count, bool)
+    film[c.packaging] = True
+    tris = []
+    for kind, conn in model.cells:
+        if kind in ("quad", "triangle"):
+            conn = conn[film[conn].all(axis=1)]
+            tris += [conn[:, [0, 1, 2]], conn[:, [0, 2, 3]]] if kind == "quad" else [conn]
+    tri = positions[np.vstack(tris)]
+    # a nudge off the mesh's regular lines, so rays do not pass exactly through film nodes
+    p = positions[c.content_nodes] + np.array([1.1e-7, 1.3e-7, 0.0])
+    outside = (_ray_crossings(p, tri, True) % 2 == 0) & (_ray_crossings(p, tri, False) % 2 == 0)
+    return c.content_nodes[outside]
+
+
 def assemble(
     build: ConsignmentBuild,
     settings: AssemblySettings | None = None,
@@ -387,6 +429,8 @@ def assemble(
         "packaging_mass_kg": float(c.packaging_mass),
         "content_mass_kg": float(c.content_mass),
         "at_rest": bool(kin < st.kinetic_tolerance),
+        # content nodes the closed packaging does not hold (see content_outside_packaging)
+        "content_nodes_outside": int(content_outside_packaging(model_c, c, s.positions).size),
     }
     snap = Snapshot(build, model_c.positions0[:n].copy(), s.positions.copy(),
                     s.rotations.copy(), info)  # fmt: skip

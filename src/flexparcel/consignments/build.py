@@ -24,7 +24,7 @@ Coordinates: the bottom layer lies in z = 0 centred on the origin, x along the l
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -34,7 +34,7 @@ from flexparcel.consignments.materials import (
     packaging_material,
 )
 from flexparcel.contact.law import ContactLaw
-from flexparcel.elements.solid import SolidMaterial
+from flexparcel.elements.solid import SolidMaterial, solid_reference_data
 from flexparcel.model.builder import ModelBuilder
 from flexparcel.model.materials import ShellMaterial
 from flexparcel.model.rigid import RoundedBox
@@ -78,6 +78,7 @@ GLUED_STRIP_WIDTH = 0.010  # KP/BW, paper 3.1.1
 INITIAL_GAP = 2e-3  # top layer above the bottom one before the opening [m]
 FIT_CLEARANCE = 4e-3  # flat packaging >= content + content height + this (at least) [m]
 CONTENT_EDGE_RADIUS = 3e-3  # rounded edges of the cardboard box contents [m]
+FLEXIBLE_CONTENT_EDGE_RADIUS = 0.5  # flexible content: edge radius / content height
 CONTENT_CLEARANCE = 0.2e-3  # content above the bottom layer's contact surface [m]
 GLUE_STRIPE = (0.6, 0.020)  # KP: stripe length (fraction of content length), width [m]
 
@@ -283,11 +284,17 @@ def add_consignment(
     else:
         body = None
         sp_, cells = _hex_block(lc, wc, hc, h, (0.0, 0.0, zc))
-        volume = lc * wc * hc
-        solid = SolidMaterial(
-            FLEXIBLE_CONTENT["youngs_modulus"], FLEXIBLE_CONTENT["poisson_ratio"],
-            content_mass / volume, FLEXIBLE_CONTENT["damping_ratio"],
+        edges = _block_edges(sp_)
+        # A granulate bag is no sharp box: its edges are rounded with half its height, the
+        # radius of a fold. With sharp corners a flat pillow bag of 25 mm film elements cannot
+        # wrap them: in PB assembled at 25 mm, 4 of the 8 corners ended outside the film.
+        sp_ = _round_block(sp_, FLEXIBLE_CONTENT_EDGE_RADIUS * hc)
+        unit = SolidMaterial(
+            FLEXIBLE_CONTENT["youngs_modulus"], FLEXIBLE_CONTENT["poisson_ratio"], 1.0,
+            FLEXIBLE_CONTENT["damping_ratio"],
         )  # fmt: skip
+        volume = float(solid_reference_data(sp_, cells, "hex8", unit).volume.sum())
+        solid = replace(unit, density=content_mass / volume)
         content_nodes = b.add_solid_mesh(sp_, cells, "hex8", material=solid)
         # Node-to-face contact both ways (the two-pass method, Wriggers, Computational
         # Contact Mechanics, 2006, sec. 5.2): film nodes against the block's boundary faces,
@@ -300,9 +307,7 @@ def add_consignment(
         # in it PB's assembly took 10,662 steps and did not come to rest, against 3,629 steps
         # with edges and corners (21 face-inner nodes ended outside the film, though).
         b.add_face_contact(ids, content_nodes, law, thickness=t / 2, schedule=sched)
-        b.add_face_contact(
-            content_nodes[_block_edges(sp_)], ids, law, thickness=t / 2, schedule=sched
-        )
+        b.add_face_contact(content_nodes[edges], ids, law, thickness=t / 2, schedule=sched)
     if self_contact:
         b.add_self_contact(ids, law, thickness=t)
     top = ids[top_ids]
@@ -330,6 +335,25 @@ def _block_edges(points: np.ndarray) -> np.ndarray:
     lo, hi = points.min(axis=0), points.max(axis=0)
     tol = 1e-9 * float(np.max(hi - lo))
     return ((points <= lo + tol) | (points >= hi - tol)).sum(axis=1) >= 2
+
+
+def _round_block(points: np.ndarray, radius: float) -> np.ndarray:
+    """Points (n, 3) of a block of :func:`_hex_block` with its edges rounded by ``radius``
+    [m]: each point outside the rounded box moves onto it along the line from the nearest point
+    of the inner box (shrunk by ``radius``), so edge nodes go onto the edge's quarter
+    cylinder, corners onto the corner's sphere octant, and face and interior nodes stay."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    if not 0.0 <= radius <= float(np.min(half)) * (1.0 + 1e-9):
+        raise ValueError(f"edge radius must lie in [0, {float(np.min(half))}] m, got {radius}")
+    inner = np.maximum(half - radius, 0.0)
+    core = np.clip(points, centre - inner, centre + inner)
+    d = points - core
+    dist = np.linalg.norm(d, axis=1)
+    out = dist > radius * (1.0 + 1e-12)
+    rounded = points.copy()
+    rounded[out] = core[out] + d[out] * (radius / dist[out])[:, None]
+    return rounded
 
 
 def _hex_block(lx: float, ly: float, lz: float, h: float, centre) -> tuple[np.ndarray, np.ndarray]:
