@@ -107,6 +107,16 @@ def test_adaptive_run_matches_fine_fixed_step():
     assert r.stats["rejected_steps"] <= r.stats["steps"]
 
 
+def test_rejected_steps_counted_by_cause():
+    # a first step of 20 ms against a 1 um error tolerance is rejected for its error estimate
+    model, _ = _paper_sheet(6)
+    opt = fp.IntegratorOptions(dt_initial=2e-2, tol_displacement=1e-6)
+    r = fp.simulate(model, 0.02, dt_out=0.02, options=opt)
+    causes = ("newton", "error", "impact", "penetration")
+    assert r.stats["rejected_error"] > 0
+    assert sum(r.stats[f"rejected_{c}"] for c in causes) == r.stats["rejected_steps"]
+
+
 def test_divergence_raises_clear_error_not_nan():
     # an absurd load explodes the model: the run must stop with ConvergenceError naming time,
     # step and node, never return non-finite results

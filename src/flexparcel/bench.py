@@ -209,7 +209,11 @@ def _conveyor(
         "node_count": run.conveyor_model.model.node_count,
         "steps": st["steps"],
         "rejected_steps": st["rejected_steps"],
+        "rejected_by_cause": {
+            cause: st[f"rejected_{cause}"] for cause in ("newton", "error", "impact", "penetration")
+        },
         "newton_iterations": st["newton_iterations"],
+        "newton_iterations_rejected": st["newton_iterations_rejected"],
         "factorizations": st.get("factorizations"),
         "phase_wall_s": {k: v for k, v in st["wall_s"].items() if k != "total"},
         "simulated_s_per_wall_s": t_end / run.wall_s,

@@ -191,7 +191,18 @@ class IntegratorOptions:
 class Stats:
     steps: int = 0
     rejected_steps: int = 0
+    """All rejected tries; by cause in the next four."""
+    rejected_newton: int = 0
+    """Newton did not converge in ``max_newton`` iterations or diverged."""
+    rejected_error: int = 0
+    """The local error estimate exceeded ``tol_displacement``."""
+    rejected_impact: int = 0
+    """An impact needed a shorter step (``impact_step_fraction``)."""
+    rejected_penetration: int = 0
+    """A contact went deeper than its law's ``max_penetration``."""
     newton_iterations: int = 0
+    newton_iterations_rejected: int = 0
+    """Newton iterations spent in tries that Newton did not converge (part of the above)."""
     factorizations: int = 0
     krylov_solves: int = 0
     krylov_iterations: int = 0
@@ -843,9 +854,12 @@ class GeneralizedAlpha:
                     f"time step fell below dt_min = {opt.dt_min:g} s at t = {state.time:.6g} s "
                     f"(step {self.stats.steps + 1}); worst node {worst} at {pos} m"
                 )
+            its_before = self.stats.newton_iterations
             out = self._try_step(state, h)
             if out is None:
                 self.stats.rejected_steps += 1
+                self.stats.rejected_newton += 1
+                self.stats.newton_iterations_rejected += self.stats.newton_iterations - its_before
                 self.h = 0.5 * h
                 # Newton's reach, unlike the error estimate, is not predicted by the controller:
                 # remember where it failed and let the cap relax slowly afterwards
@@ -862,6 +876,7 @@ class GeneralizedAlpha:
                 h_lim = opt.impact_step_fraction * 2.0 * np.pi / np.sqrt(self._impact_w2)
                 if h > 1.5 * h_lim and h_lim >= opt.dt_min:
                     self.stats.rejected_steps += 1
+                    self.stats.rejected_impact += 1
                     self.h = h_lim
                     continue
                 self.h = min(self.h, max(h_lim, opt.dt_min))
@@ -869,6 +884,7 @@ class GeneralizedAlpha:
             if ratio > 1.0:
                 # a contact went deeper than its law's max_penetration: retry smaller
                 self.stats.rejected_steps += 1
+                self.stats.rejected_penetration += 1
                 if h <= opt.dt_min * 1.0001:
                     raise ConvergenceError(
                         f"contact point {point} (node {int(self.model.cp_node[point])}) "
@@ -887,6 +903,7 @@ class GeneralizedAlpha:
                 grow = 1.5 if ratio == 0 else min(1.5, max(0.3, 0.85 * ratio ** (-1.0 / 3.0)))
                 if ratio > 1.0:
                     self.stats.rejected_steps += 1
+                    self.stats.rejected_error += 1
                     self.h = h * grow
                     continue
                 # a new h costs a refactorisation: change it only for a clear gain, and never
