@@ -300,12 +300,12 @@ def add_consignment(
         # Contact Mechanics, 2006, sec. 5.2): film nodes against the block's boundary faces,
         # and the block's edge and corner nodes against the film faces. With the first pass
         # alone the block's edges slip between the film nodes, where a film face spans the
-        # corner as a chord: in PB assembled at 25 mm, 114 of 390 content nodes ended
-        # outside the film, with both passes 35 (4 corners still under the film's rim,
-        # where they sink in the conveyor scene: a known defect, see the README). The
-        # block's face-inner nodes are left out of the second pass: with all boundary nodes
-        # in it PB's assembly took 10,662 steps and did not come to rest, against 3,629 steps
-        # with edges and corners (21 face-inner nodes ended outside the film, though).
+        # corner as a chord: in PB assembled at 25 mm (sharp block), 114 of 390 content
+        # nodes ended outside the film, with both passes 35 (4 corners under the film's rim),
+        # with both passes and rounded edges 40, no corner among them, at most 0.43 mm out
+        # (data/paper-snapshots-25mm/README.md). The block's face-inner nodes are left out
+        # of the second pass: with all boundary nodes in it PB's assembly (sharp block) took
+        # 10,662 steps and did not come to rest, against 3,629 with edges and corners.
         b.add_face_contact(ids, content_nodes, law, thickness=t / 2, schedule=sched)
         b.add_face_contact(content_nodes[edges], ids, law, thickness=t / 2, schedule=sched)
     if self_contact:
