@@ -49,36 +49,16 @@ class LinearSolver:
         return self._lu.solve(b)
 
 
-class _TransposedLU:
-    """SuperLU factors of A^T that solve with A (``trans="T"``)."""
-
-    def __init__(self, lu) -> None:
-        self.lu = lu
-
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        return self.lu.solve(b, trans="T")
-
-
 def _superlu(a: sp.spmatrix):
-    """SuperLU factors of ``a`` (MMD(A^T+A) ordering, symmetric mode). A CSR matrix is read as
-    the CSC matrix of its transpose, which is factorised and solved with ``trans="T"``: SuperLU
-    takes CSC, and the conversion is a copy (profiled: 3.3 ms of a 59 ms Newton iteration of
-    the four-consignment conveyor; first 0.01 s of the four 13.6-14.1 s against 14.2-14.3 s
-    with it, the same steps). The ordering of A^T + A and the diagonal pivots are the same
-    for A and A^T."""
     try:
-        if sp.issparse(a) and a.format == "csr":
-            at = sp.csc_matrix((a.data, a.indices, a.indptr), shape=a.shape[::-1])
-            return _TransposedLU(_splu(at))
-        return _splu(a.tocsc())
+        return spla.splu(
+            a.tocsc(),
+            permc_spec="MMD_AT_PLUS_A",
+            diag_pivot_thresh=0.0,
+            options=dict(SymmetricMode=True),
+        )
     except RuntimeError as exc:  # "Factor is exactly singular"
         raise SingularMatrixError(str(exc)) from exc
-
-
-def _splu(a: sp.csc_matrix):
-    return spla.splu(
-        a, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True)
-    )
 
 
 class _Worker:
