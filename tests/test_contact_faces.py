@@ -46,3 +46,20 @@ def test_face_contact_bad_input():
         b.add_face_contact(ids, ids[:2], law, thickness=1e-3)
     with pytest.raises(TypeError, match=r"law must be a ContactLaw"):
         b.add_face_contact(ids, ids, "stiff", thickness=1e-3)
+
+
+def test_surface_triangles_split_each_kept_quad_once():
+    # the contact surfaces' triangulation: a kept quad gives its two 0-2-diagonal triangles,
+    # a kept triangle itself; a cell with any node not kept, and solid cells, give nothing
+    from flexparcel.model.mesh import surface_triangles
+
+    cells = [
+        ("quad", np.array([[0, 1, 2, 3], [1, 4, 5, 2]])),
+        ("triangle", np.array([[3, 2, 6], [5, 7, 6]])),
+        ("hexahedron", np.arange(8)[None, :]),
+    ]
+    keep = np.ones(8, dtype=bool)
+    keep[[4, 7]] = False
+    tris = surface_triangles(cells, keep)
+    np.testing.assert_array_equal(tris, [[0, 1, 2], [0, 2, 3], [3, 2, 6]])
+    assert surface_triangles([], keep).shape == (0, 3)

@@ -38,6 +38,7 @@ from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.model.builder import Model, ModelBuilder, State
+from flexparcel.model.mesh import surface_triangles
 from flexparcel.model.schedule import Schedule
 from flexparcel.simulate import simulate
 
@@ -325,12 +326,7 @@ def content_outside_packaging(model: Model, c: Consignment, positions: np.ndarra
     For a rigid content the node is its centre of mass."""
     film = np.zeros(model.node_count, bool)
     film[c.packaging] = True
-    tris = []
-    for kind, conn in model.cells:
-        if kind in ("quad", "triangle"):
-            conn = conn[film[conn].all(axis=1)]
-            tris += [conn[:, [0, 1, 2]], conn[:, [0, 2, 3]]] if kind == "quad" else [conn]
-    tri = positions[np.vstack(tris)]
+    tri = positions[surface_triangles(model.cells, film)]
     # a nudge off the mesh's regular lines, so rays do not pass exactly through film nodes
     p = positions[c.content_nodes] + np.array([1.1e-7, 1.3e-7, 0.0])
     outside = (_ray_crossings(p, tri, True) % 2 == 0) & (_ray_crossings(p, tri, False) % 2 == 0)

@@ -329,12 +329,17 @@ def add_consignment(
     )
 
 
-def _block_edges(points: np.ndarray) -> np.ndarray:
-    """Mask (n,) of the points of a block of :func:`_hex_block` on its edges and corners (on
-    two or three of its six faces)."""
+def _block_face_count(points: np.ndarray) -> np.ndarray:
+    """On how many of its six faces (0 to 3) each point (n, 3) of a block of
+    :func:`_hex_block` lies: 3 at corners, 2 on edges, 1 on faces, 0 inside."""
     lo, hi = points.min(axis=0), points.max(axis=0)
     tol = 1e-9 * float(np.max(hi - lo))
-    return ((points <= lo + tol) | (points >= hi - tol)).sum(axis=1) >= 2
+    return ((points <= lo + tol) | (points >= hi - tol)).sum(axis=1)
+
+
+def _block_edges(points: np.ndarray) -> np.ndarray:
+    """Mask (n,) of the points of a block of :func:`_hex_block` on its edges and corners."""
+    return _block_face_count(points) >= 2
 
 
 def _round_block(points: np.ndarray, radius: float) -> np.ndarray:

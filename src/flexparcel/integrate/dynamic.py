@@ -842,6 +842,12 @@ class GeneralizedAlpha:
         wall = take("stat_wall", np.zeros(len(self.stats.wall_s)))
         self.stats.wall_s = dict(zip(self.stats.wall_s, map(float, wall), strict=True))
 
+    def _reject(self, cause: str) -> None:
+        """Count a rejected try and its cause (a ``Stats.rejected_<cause>`` field)."""
+        self.stats.rejected_steps += 1
+        name = f"rejected_{cause}"
+        setattr(self.stats, name, getattr(self.stats, name) + 1)
+
     def step(self, state: State, t_limit: float) -> State:
         """Advance ``state`` by one accepted step not past ``t_limit``; returns the new state."""
         opt = self.opt
@@ -857,8 +863,7 @@ class GeneralizedAlpha:
             its_before = self.stats.newton_iterations
             out = self._try_step(state, h)
             if out is None:
-                self.stats.rejected_steps += 1
-                self.stats.rejected_newton += 1
+                self._reject("newton")
                 self.stats.newton_iterations_rejected += self.stats.newton_iterations - its_before
                 self.h = 0.5 * h
                 # Newton's reach, unlike the error estimate, is not predicted by the controller:
@@ -875,16 +880,14 @@ class GeneralizedAlpha:
                 # the rebound gains energy
                 h_lim = opt.impact_step_fraction * 2.0 * np.pi / np.sqrt(self._impact_w2)
                 if h > 1.5 * h_lim and h_lim >= opt.dt_min:
-                    self.stats.rejected_steps += 1
-                    self.stats.rejected_impact += 1
+                    self._reject("impact")
                     self.h = h_lim
                     continue
                 self.h = min(self.h, max(h_lim, opt.dt_min))
             n_contact, depth, point, ratio = self._contact_info
             if ratio > 1.0:
                 # a contact went deeper than its law's max_penetration: retry smaller
-                self.stats.rejected_steps += 1
-                self.stats.rejected_penetration += 1
+                self._reject("penetration")
                 if h <= opt.dt_min * 1.0001:
                     raise ConvergenceError(
                         f"contact point {point} (node {int(self.model.cp_node[point])}) "
@@ -902,8 +905,7 @@ class GeneralizedAlpha:
                 ratio = err / opt.tol_displacement
                 grow = 1.5 if ratio == 0 else min(1.5, max(0.3, 0.85 * ratio ** (-1.0 / 3.0)))
                 if ratio > 1.0:
-                    self.stats.rejected_steps += 1
-                    self.stats.rejected_error += 1
+                    self._reject("error")
                     self.h = h * grow
                     continue
                 # a new h costs a refactorisation: change it only for a clear gain, and never

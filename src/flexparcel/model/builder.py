@@ -14,7 +14,7 @@ from flexparcel.contact.law import PACKED_SIZE
 from flexparcel.elements import shell
 from flexparcel.model.checks import finite_number
 from flexparcel.model.materials import ShellMaterial
-from flexparcel.model.mesh import quads_to_triangles
+from flexparcel.model.mesh import quads_to_triangles, surface_triangles
 from flexparcel.model.rigid import PrescribedMotion, RoundedBox
 from flexparcel.model.schedule import Schedule
 
@@ -557,18 +557,12 @@ class ModelBuilder:
     def _face_triangles(self, name: str, face_node_ids) -> np.ndarray:
         """Triangles (M, 3) of the shell faces (quads split once) and solid boundary faces
         whose corners all lie in ``face_node_ids``."""
-        faces = set(self._check_ids(name, face_node_ids).tolist())
-        tris = []
-        for ctype, lst in self._cells.items():
-            for c in lst:
-                inside = np.array([all(int(v) in faces for v in row) for row in c], dtype=bool)
-                c = c[inside]
-                if ctype == "quad":
-                    tris.append(np.vstack([c[:, [0, 1, 2]], c[:, [0, 2, 3]]]))
-                else:
-                    tris.append(c)
-        tris.extend(t for t in [_solid_boundary_triangles(self._solids, faces)] if len(t))
-        tris = np.vstack(tris) if tris else np.zeros((0, 3), np.int64)
+        ids = self._check_ids(name, face_node_ids)
+        keep = np.zeros(self._node_count, dtype=bool)
+        keep[ids] = True
+        cells = [(ctype, c) for ctype, lst in self._cells.items() for c in lst]
+        solid = _solid_boundary_triangles(self._solids, set(ids.tolist()))
+        tris = np.vstack([surface_triangles(cells, keep), solid])
         if len(tris) == 0:
             raise ValueError(
                 f"{name}: face_node_ids contain no complete shell face or solid boundary face"

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rectangle", "quads_to_triangles", "triangle_areas"]
+__all__ = ["rectangle", "quads_to_triangles", "surface_triangles", "triangle_areas"]
 
 
 def rectangle(
@@ -52,6 +52,20 @@ def quads_to_triangles(quads: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         [q[:, [0, 1, 2]], q[:, [0, 2, 3]], q[:, [0, 1, 3]], q[:, [1, 2, 3]]], axis=0
     )
     return tris, np.full(len(tris), 0.5)
+
+
+def surface_triangles(cells, keep: np.ndarray) -> np.ndarray:
+    """Triangles (m, 3) of the shell cells whose nodes all have ``keep`` (bool, per node):
+    ``cells`` is an iterable of ("quad", (q, 4)) or ("triangle", (t, 3)) pairs (other kinds are
+    skipped); each quad is split once, along its 0-2 diagonal, as the contact surfaces are."""
+    tris = [np.zeros((0, 3), np.int64)]
+    for kind, conn in cells:
+        if kind not in ("quad", "triangle"):
+            continue
+        c = np.asarray(conn, dtype=np.int64)
+        c = c[keep[c].all(axis=1)]
+        tris += [c[:, [0, 1, 2]], c[:, [0, 2, 3]]] if kind == "quad" else [c]
+    return np.vstack(tris)
 
 
 def triangle_areas(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
