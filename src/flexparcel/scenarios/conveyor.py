@@ -12,8 +12,15 @@ Modelling choices (they differ from the paper, which uses a shell belt on driven
 * the belt is a rigid plane with a prescribed surface velocity (``ModelBuilder.add_plane``).
   The plane is unbounded: nothing falls off at x = ``belt_length``; the responses
   (:mod:`flexparcel.scenarios.conveyor_responses`) report when a consignment passes it.
-* each deflector is a fixed rigid body carrying a triangle mesh of its upstream face (a
-  vertical rectangle). Only *shell nodes* can touch a triangle mesh in flexparcel
+* each deflector is a fixed rigid body carrying a triangle mesh of its mid-plane, half the
+  sheet thickness behind its upstream face (a vertical rectangle); shell nodes touch it with
+  a contact thickness of half their own thickness plus half the sheet's, so they meet the
+  upstream face. A face contact pushes a node back to the side of the mesh it came from:
+  on a mesh at the upstream face itself, a node pressed harder than c h (611 N/mm x 0.1 mm
+  = 61 N for packaging of Table 6) crosses the face plane within a step and is then held
+  behind the deflector (measured in the paper's scene: KP's kraft rim went through the
+  second deflector at 1.45 s and hooked KP onto it); through a 2 mm sheet it takes 670 N.
+  Only *shell nodes* can touch a triangle mesh in flexparcel
   (``add_face_contact``); a rigid box content cannot. For a rigid box use a plane through
   :attr:`DeflectorGeometry.point` with :attr:`DeflectorGeometry.normal`, which is unbounded
   (it goes on past the tip and through the other half of the belt), so it is only right while
@@ -122,8 +129,8 @@ class ConveyorScene:
             each tip at most at x = belt_length. Our choice; the paper gives no positions.
         centre_gap: distance of each tip from the belt centre line [m] in [0, belt_width / 2).
         deflector_height: [m] in (0, 1].
-        deflector_thickness: steel sheet thickness [m] in (0, 0.05]; only the fixed body's
-            mass depends on it (the contact face is the upstream face).
+        deflector_thickness: steel sheet thickness [m] in (0, 0.05]: the face mesh lies
+            half of it behind the upstream face (see the module docstring).
         side_guides: add unbounded guide planes along both belt edges.
     """
 
@@ -216,11 +223,16 @@ class ConveyorParts:
     """Node id of each deflector's fixed rigid body. Its RoundedBox is axis-aligned and only
     carries the mesh: never use it in ``add_body_contact``."""
     deflector_vertices: tuple[np.ndarray, ...]
-    """Node ids of each deflector's face-mesh vertices (``face_node_ids`` of
-    ``add_face_contact``), shape (v,) each."""
+    """Node ids of each deflector's mid-plane mesh vertices (``face_node_ids`` of
+    ``add_face_contact``, with :meth:`deflector_contact_thickness`), shape (v,) each."""
     deflectors: tuple[DeflectorGeometry, ...]
     side_guide_planes: tuple[int, ...] = field(default=())
     """Plane ids of the guides at y = +width/2 and y = -width/2, or () if none."""
+
+    def deflector_contact_thickness(self, shell_half_thickness: float) -> float:
+        """Contact thickness [m] of shell nodes of half thickness ``shell_half_thickness``
+        [m] against the deflector meshes: that plus half the sheet thickness."""
+        return float(shell_half_thickness) + 0.5 * self.scene.deflector_thickness
 
 
 def _face_mesh(g: DeflectorGeometry) -> tuple[np.ndarray, np.ndarray]:
@@ -249,8 +261,9 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
 
     Contact pairs are left to the caller, who knows the consignments and their laws:
     ``builder.add_contact(nodes, parts.belt_plane, law, radius=t / 2)`` for the belt,
-    ``builder.add_face_contact(nodes, parts.deflector_vertices[k], law, thickness=t / 2)`` for
-    shell nodes against deflector k.
+    ``builder.add_face_contact(nodes, parts.deflector_vertices[k], law,
+    thickness=parts.deflector_contact_thickness(t / 2))`` for shell nodes (thickness t) against
+    deflector k.
     """
     scene = scene if scene is not None else ConveyorScene()
     if not isinstance(scene, ConveyorScene):
@@ -261,6 +274,7 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
     for g in geometry:
         pts, tris = _face_mesh(g)
         t, h = scene.deflector_thickness, g.height
+        pts = pts - 0.5 * t * g.normal  # the sheet's mid-plane
         centre = g.root + 0.5 * g.length * g.tangent + np.array([0.0, 0.0, 0.5 * h])
         # a sheet-thick column at the face centre with the sheet's mass: a RoundedBox cannot be
         # turned to the deflector angle at build time, and a fixed body's shape only matters

@@ -13,8 +13,9 @@ Contacts added (SI units, laws of :mod:`flexparcel.contact.law`):
   Table 6 packaging-ground law (611 N/mm, 0.591 N s/mm, STEP damping over 0.1 mm) with the
   friction of the packaging's outer surface on the PU belt
   (:mod:`flexparcel.scenarios.friction_pairs`);
-* packaging shell nodes vs each deflector's face mesh (thickness: half the packaging
-  thickness): the same normal law, friction of the surface on X6Cr17 steel;
+* packaging shell nodes vs each deflector's mid-plane mesh (thickness: half the packaging
+  thickness plus half the sheet's, so the nodes meet the upstream face): the same normal law,
+  friction of the surface on X6Cr17 steel;
 * packaging vs packaging of two different consignments, both ways (the nodes of each against
   the faces of the other; thickness: the mean of the two half thicknesses): the paper's
   Table 6 packaging-content law (649 N/mm, 0.579 N s/mm) with friction 0.3 (the paper gives no
@@ -641,7 +642,8 @@ def build_conveyor_model(
         laws[p.name] = {"belt": lb, "deflector": ld}
         b.add_contact(c.packaging, parts.belt_plane, lb, radius=c.contact_radius)
         for verts in parts.deflector_vertices:
-            b.add_face_contact(c.packaging, verts, ld, thickness=c.contact_radius)
+            thick = parts.deflector_contact_thickness(c.contact_radius)
+            b.add_face_contact(c.packaging, verts, ld, thickness=thick)
     pp_law = replace(default_packaging_content_law(), mu_static=mu, mu_dynamic=mu)
     names = [p.name for p in layout.placements]
     centre = {p.name: np.array([p.x, p.y]) for p in layout.placements}
@@ -681,8 +683,9 @@ def deflector_normal_forces(cm: ConveyorModel, result: SimulationResult) -> dict
     the deflector law: per packaging node over a face rectangle, penetration
     s = h - distance to the face plane (h = half the packaging thickness), rate
     s' = -v . normal, F_N = max(c s^m_s + damping, R_df c s^m_s) (paper eqs. 1-6). Nodes
-    behind the face plane or off the rectangle do not count. Peaks between frames are
-    missed: it samples the force every output interval."""
+    behind the sheet's mid-plane (half ``deflector_thickness`` behind the face) or off the
+    rectangle do not count. Peaks between frames are missed: it samples the force every
+    output interval."""
     from flexparcel.contact.law import normal_force_packed
 
     t = np.asarray(result.time)
@@ -700,7 +703,7 @@ def deflector_normal_forces(cm: ConveyorModel, result: SimulationResult) -> dict
             dist = d @ g.normal
             s = h - dist
             on = (a >= 0.0) & (a <= g.length) & (zz >= -h) & (zz <= g.height) & (s > 0.0)
-            on &= dist > -h  # came from the upstream side
+            on &= dist > -0.5 * cm.parts.scene.deflector_thickness  # the upstream side
             rate = -(v @ g.normal)
             for k, i in zip(*np.nonzero(on), strict=True):
                 total[k] += normal_force_packed(float(s[k, i]), float(rate[k, i]), law)[0]
