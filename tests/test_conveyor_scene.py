@@ -263,6 +263,30 @@ def test_pair_reach_keeps_only_neighbours(snapshot_dir):
     assert len(build_conveyor_model({"c": snap}, layout).consignment_pairs) == 6
 
 
+def test_deflector_crossings_flag_packaging_behind_a_deflector(snapshot_dir):
+    from types import SimpleNamespace
+
+    from flexparcel.scenarios.conveyor_scene import deflector_crossings
+
+    snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
+    cm = build_conveyor_model({"c": snap}, throughput_layout(snap.build, 2))
+    g = cm.parts.deflectors[0]
+    half = 0.5 * cm.parts.scene.deflector_thickness
+    mid = g.root + 0.5 * g.length * g.tangent + np.array([0.0, 0.0, 0.5 * g.height])
+    node = int(cm.consignments["c1"].packaging[0])
+    frames = np.repeat(cm.state0.positions[None], 4, axis=0)
+    frames[1, node] = mid + 0.005 * g.normal  # in front of the face: fine
+    frames[2, node] = mid - (half + 0.001) * g.normal  # 1 mm behind the mid-plane
+    frames[3, node] = mid - (half + 0.02) * g.normal  # deeper than depth: elsewhere
+    res = SimpleNamespace(time=np.array([0.0, 0.01, 0.02, 0.03]), positions=frames)
+    assert deflector_crossings(cm, res) == {"c0": None, "c1": 0.02}
+    res = SimpleNamespace(time=res.time[:3], positions=frames[[0, 1, 3]])
+    assert deflector_crossings(cm, res)["c1"] is None
+    assert deflector_crossings(cm, res, depth=0.05)["c1"] == 0.02
+    with pytest.raises(ValueError, match="depth must be > 0 m"):
+        deflector_crossings(cm, res, depth=0.0)
+
+
 @pytest.fixture(scope="module")
 def conveyor_run(snapshot_dir, tmp_path_factory):
     out = tmp_path_factory.mktemp("conveyor") / "run"
@@ -290,6 +314,7 @@ def test_four_consignments_move_downstream_and_are_deflected(conveyor_run):
         assert c["peak_contact_force"] > 0.0, name
     assert r["parameters"]["belt_speed_m_s"] == 1.6 and r["parameters"]["t_end_s"] == 0.01
     assert r["friction"]["a"]["belt"] == [0.5, 0.4]  # bubble_wrap on PU, table default
+    assert r["deflector_crossings"] == {"a": None, "b": None, "c": None, "d": None}
 
 
 def test_conveyor_cli_writes_its_files(conveyor_run, capsys):

@@ -221,6 +221,7 @@ def _conveyor(
         "recurdyn_wall_s": recurdyn_s,
         "speedup_vs_recurdyn": recurdyn_s / run.wall_s,
         "responses": summary["consignments"],
+        "deflector_crossings": summary["deflector_crossings"],
         "files": files,
         "note": "RecurDyn: 24 h on 4 cores for 2 s; recurdyn_wall_s is scaled to simulated_s. "
         "A short run extrapolates badly: the start (before the deflectors) is cheaper or "

@@ -86,6 +86,7 @@ __all__ = [
     "belt_law",
     "build_conveyor_model",
     "deflector_normal_forces",
+    "deflector_crossings",
     "run_conveyor",
     "conveyor_options",
 ]
@@ -711,6 +712,34 @@ def deflector_normal_forces(cm: ConveyorModel, result: SimulationResult) -> dict
     return out
 
 
+def deflector_crossings(
+    cm: ConveyorModel, result: SimulationResult, depth: float = 0.01
+) -> dict[str, float | None]:
+    """First recorded time [s] at which a packaging node of each consignment lies behind a
+    deflector, or None: behind the sheet's mid-plane by less than ``depth`` [m] (> 0), with
+    its projection on the face rectangle. Packaging comes from upstream and leaves past the
+    tip, so a node there has gone through the sheet, a sign that the contact failed (see
+    :mod:`flexparcel.scenarios.conveyor`), or round the tip's edge (a film folding round
+    it). Placement name -> time."""
+    depth = finite_number("depth", depth)
+    if depth <= 0.0:
+        raise ValueError(f"depth must be > 0 m, got {depth:g}")
+    t = np.asarray(result.time)
+    half = 0.5 * cm.parts.scene.deflector_thickness
+    out: dict[str, float | None] = {}
+    for name, c in cm.consignments.items():
+        p = np.asarray(result.positions)[:, c.packaging]  # (k, m, 3)
+        hit = np.zeros(len(t), dtype=bool)
+        for g in cm.parts.deflectors:
+            d = p - g.root
+            a = d @ g.tangent
+            behind = -(d @ g.normal) - half  # beyond the mid-plane [m]
+            on = (a >= 0.0) & (a <= g.length) & (d[..., 2] >= 0.0) & (d[..., 2] <= g.height)
+            hit |= (on & (behind > 0.0) & (behind < depth)).any(axis=1)
+        out[name] = float(t[np.argmax(hit)]) if hit.any() else None
+    return out
+
+
 @dataclass
 class ConveyorRun:
     """A finished conveyor run."""
@@ -725,7 +754,7 @@ class ConveyorRun:
 
     def summary(self) -> dict:
         """``responses.json`` content: per-consignment responses, ``simulated_s``,
-        ``wall_s``, ``steps``, layout and model size."""
+        ``wall_s``, ``steps``, layout, model size and :func:`deflector_crossings`."""
         res, cm = self.result, self.conveyor_model
         st = res.stats
         sim = float(res.time[-1] - res.time[0])
@@ -742,6 +771,7 @@ class ConveyorRun:
             "node_count": int(cm.model.node_count),
             "dof_count": int(cm.model.dof_count),
             "consignment_contact_pairs": [list(p) for p in cm.consignment_pairs],
+            "deflector_crossings": deflector_crossings(cm, res),
             "layout": cm.layout.to_dict(),
             "friction": {
                 k: {part: [law.mu_static, law.mu_dynamic] for part, law in v.items()}
