@@ -20,7 +20,9 @@ def test_shell_cantilever_example_runs():
 def test_box_on_belt_example_runs():
     ns = runpy.run_path(str(EXAMPLE.parent / "box_on_belt.py"))
     t_reach, t_exact = ns["box_on_belt"]()
-    # the box slides at mu_d except for the last ~v_d of slip; with the paper's contact law
-    # (611 N/mm per corner, STEP damping that vanishes at the micron penetrations of a resting
-    # box) the box chatters on the belt and arrives 4 % late (measured): allow 5 %
-    assert t_reach == pytest.approx(t_exact, rel=5e-2)
+    # the box slides at mu_d except for the last ~v_d of slip (a few ms); the arrival is read
+    # from frames 5 ms apart (1.2 % of t_exact): allow 2 %. Measured 0.410 s against 0.408 s;
+    # with the default step tolerance (0.1 mm) the box bounced on its stiff corner contacts
+    # (611 N/mm, STEP damping that vanishes at the micron penetrations of a resting box) and
+    # arrived 4-10 % late
+    assert t_reach == pytest.approx(t_exact, rel=2e-2)
