@@ -755,7 +755,7 @@ class GeneralizedAlpha:
                 # their first iteration with a rate of 0.076 made KP's film nodes on its box
                 # alternate their velocity (-0.44 / -0.04 m/s) from step to step, and the
                 # error estimate held the steps at 7.5 us (266 steps over 2 ms, 32.8 s);
-                # with a second iteration at least every other step 28 steps, 9.1 s.
+                # with a second iteration at least every other step 36 steps, 9.5 s.
                 err_est = norm * self._last_rate / (1.0 - self._last_rate)
                 accept_first = err_est <= tol
             else:
@@ -843,10 +843,7 @@ class GeneralizedAlpha:
         for i, a in enumerate(self._face_anchors):
             a.anchor = take(f"face_anchor_{i}", a.anchor)
             a.has = take(f"face_has_{i}", a.has)
-        old = "scalars" in history and np.shape(history["scalars"]) == (
-            len(self._HISTORY_SCALARS) - 1,
-        )
-        if old:
+        if "scalars" in history and len(history["scalars"]) == len(self._HISTORY_SCALARS) - 1:
             # a checkpoint from before _rate_fresh (2026-11-24): its rate counts as measured
             history = {**history, "scalars": np.append(history["scalars"], 1.0)}
         scalars = take("scalars", np.zeros(len(self._HISTORY_SCALARS)))

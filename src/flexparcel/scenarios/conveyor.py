@@ -94,14 +94,21 @@ class DeflectorGeometry:
         """Bottom corner near the belt centre line [m], shape (3,)."""
         return self.root + self.length * self.tangent
 
+    def face_coordinates(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Coordinates [m] of ``points`` [m], shape (..., 3), in the face's frame: along the
+        tangent from the root, height above the root, and signed distance from the face plane
+        (> 0 on the upstream side); each shape (...)."""
+        d = np.asarray(points, dtype=float) - self.root
+        return d @ self.tangent, d[..., 2], d @ self.normal
+
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Distance [m] from ``points`` [m], shape (..., 3), to the face rectangle (not the
         unbounded plane), shape (...)."""
-        d = np.asarray(points, dtype=float) - self.root
-        a = np.clip(d @ self.tangent, 0.0, self.length)
-        b = np.clip(d[..., 2], 0.0, self.height)
-        closest = a[..., None] * self.tangent + b[..., None] * np.array([0.0, 0.0, 1.0])
-        return np.linalg.norm(d - closest, axis=-1)
+        a, b, off = self.face_coordinates(points)
+        # tangent, e_z and normal are orthonormal: the offsets from the rectangle add in squares
+        da = a - np.clip(a, 0.0, self.length)
+        db = b - np.clip(b, 0.0, self.height)
+        return np.sqrt(da * da + db * db + off * off)
 
     def to_dict(self) -> dict:
         """JSON-ready copy (lists of floats)."""

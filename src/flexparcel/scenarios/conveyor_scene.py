@@ -698,10 +698,7 @@ def deflector_normal_forces(cm: ConveyorModel, result: SimulationResult) -> dict
         v = result.velocities[:, c.packaging, :3]
         total = np.zeros(len(t))
         for g in cm.parts.deflectors:
-            d = p - g.root
-            a = d @ g.tangent
-            zz = d[..., 2]
-            dist = d @ g.normal
+            a, zz, dist = g.face_coordinates(p)
             s = h - dist
             on = (a >= 0.0) & (a <= g.length) & (zz >= -h) & (zz <= g.height) & (s > 0.0)
             on &= dist > -0.5 * cm.parts.scene.deflector_thickness  # the upstream side
@@ -725,16 +722,16 @@ def deflector_crossings(
     if depth <= 0.0:
         raise ValueError(f"depth must be > 0 m, got {depth:g}")
     t = np.asarray(result.time)
+    positions = np.asarray(result.positions)
     half = 0.5 * cm.parts.scene.deflector_thickness
     out: dict[str, float | None] = {}
     for name, c in cm.consignments.items():
-        p = np.asarray(result.positions)[:, c.packaging]  # (k, m, 3)
+        p = positions[:, c.packaging]  # (k, m, 3)
         hit = np.zeros(len(t), dtype=bool)
         for g in cm.parts.deflectors:
-            d = p - g.root
-            a = d @ g.tangent
-            behind = -(d @ g.normal) - half  # beyond the mid-plane [m]
-            on = (a >= 0.0) & (a <= g.length) & (d[..., 2] >= 0.0) & (d[..., 2] <= g.height)
+            a, zz, dist = g.face_coordinates(p)
+            behind = -dist - half  # beyond the mid-plane [m]
+            on = (a >= 0.0) & (a <= g.length) & (zz >= 0.0) & (zz <= g.height)
             hit |= (on & (behind > 0.0) & (behind < depth)).any(axis=1)
         out[name] = float(t[np.argmax(hit)]) if hit.any() else None
     return out
