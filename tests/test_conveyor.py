@@ -193,9 +193,11 @@ def test_conveyor_parts_geometry_and_face_meshes():
         # rectangle, and are tied to the deflector body
         behind = (model.positions0[verts] - g.point) @ g.normal
         assert np.allclose(behind, -0.5 * scene.deflector_thickness, rtol=0, atol=1e-12)
+        # from the sheet's outer end, past the belt edge, to the tip
         along = (model.positions0[verts] - g.root) @ g.tangent
-        assert along.min() == pytest.approx(0.0, abs=1e-12)
+        assert along.min() == pytest.approx(-scene.deflector_overhang, abs=1e-12)
         assert along.max() == pytest.approx(g.length)
+        assert abs(g.outer_end[1]) == pytest.approx(0.3 + 0.1 / np.sqrt(2.0))
         assert set(model.slave_master[np.isin(model.slave_nodes, verts)]) == {body}
     # distance to the face rectangle, not to its unbounded plane: beyond the tip is far
     beyond = first.tip + 0.1 * first.tangent + 0.001 * first.normal
@@ -203,6 +205,11 @@ def test_conveyor_parts_geometry_and_face_meshes():
     assert first.distance(first.root + 0.1 * first.tangent + 0.002 * first.normal) == (
         pytest.approx(0.002)
     )
+    # the overhang is part of the face; beyond the outer end is off it
+    assert first.distance(first.root - 0.05 * first.tangent + 0.002 * first.normal) == (
+        pytest.approx(0.002)
+    )
+    assert first.distance(first.outer_end - 0.01 * first.tangent) == pytest.approx(0.01)
 
 
 def test_shell_sheet_is_stopped_by_the_deflector_face_mesh():
@@ -234,6 +241,38 @@ def test_shell_sheet_is_stopped_by_the_deflector_face_mesh():
     assert y[-1] - y[0] < -0.01
     resp = conveyor_responses(r, {"sheet": sheet}, parts.scene, contact_distance=2e-3)["sheet"]
     assert resp.deflector_contact_time[0] > 0.0 and resp.deflector_contact_time[1] == 0.0
+
+
+@pytest.mark.parametrize("overhang", [0.1, 0.0])
+def test_packaging_beside_the_belt_meets_the_deflector_overhang(overhang):
+    # A 40 mm sheet of the KP/BW material lies beside the belt edge (y = 0.31-0.35 m, the
+    # belt plane is unbounded, as where packaging hangs over the edge), 21 mm upstream of
+    # the first deflector's plane. With the sheet running on 0.1 m past the belt edge (the
+    # default) the belt drags it into the overhang, which stops it and turns it towards
+    # the centre line; with no overhang the deflector ends at the belt edge (y = 0.3 m) and
+    # the sheet passes its free end (in the paper's scene KP's film went round it).
+    scene = ConveyorScene(deflector_overhang=overhang)
+    b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
+    parts = add_conveyor(b, scene)
+    g = parts.deflectors[0]
+    pts, quads = fp.mesh.rectangle(0.04, 0.04, 4, 4, origin=(0.68, 0.31, SHEET_T / 2))
+    mat = fp.ShellMaterial(926e6, 0.1, 2424.0, SHEET_T, 1.71e-3)
+    sheet = b.add_shell_mesh(pts, quads, material=mat)
+    law = soft_contact_law()
+    b.add_contact(sheet, parts.belt_plane, law, radius=SHEET_T / 2)
+    thick = parts.deflector_contact_thickness(SHEET_T / 2)
+    b.add_face_contact(sheet, parts.deflector_vertices[0], law, thickness=thick)
+    r = fp.simulate(b.finalize(), 0.3, dt_out=0.01)
+    p = r.positions[:, sheet]
+    side = (p - g.point) @ g.normal  # signed distance from the face plane [m], (k, n)
+    assert side[0].min() == pytest.approx(0.03 / np.sqrt(2.0))
+    y = p[:, :, 1].mean(axis=1)
+    if overhang > 0.0:
+        assert side.min() > 0.0
+        assert y[-1] - y[0] < -0.01
+    else:
+        assert side[-1].max() < 0.0  # all past the deflector's plane, beside its root
+        assert abs(y[-1] - y[0]) < 1e-3
 
 
 @pytest.mark.parametrize("sheet_thickness", [2e-3, 1e-6])
@@ -381,6 +420,7 @@ def test_response_bad_input():
         ({"belt_speed": -1.6}, r"ConveyorScene\.belt_speed must be in \[0, 10\] m/s"),
         ({"deflector_angle_deg": 5.0}, r"ConveyorScene\.deflector_angle_deg must be in \[10, 90\]"),
         ({"deflector_height": 0.0}, r"ConveyorScene\.deflector_height must be in \(0, 1\] m"),
+        ({"deflector_overhang": -0.1}, r"ConveyorScene\.deflector_overhang must be in \[0, 1\] m"),
         ({"centre_gap": 0.3}, r"ConveyorScene\.centre_gap must be in \[0, belt_width / 2 = 0\.3\)"),
         (
             {"deflector_x": (1.0, 0.5)},

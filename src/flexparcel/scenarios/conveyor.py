@@ -62,8 +62,9 @@ def _number(name: str, value: object) -> float:
 class DeflectorGeometry:
     """The upstream face of one deflector: a vertical rectangle (SI units).
 
-    The face spans ``root + a * tangent + b * e_z`` for ``0 <= a <= length``,
-    ``0 <= b <= height``.
+    The face spans ``root + a * tangent + b * e_z`` for ``-overhang <= a <= length``,
+    ``0 <= b <= height``: from the sheet's outer end, ``overhang`` beyond the belt edge, to
+    its tip.
     """
 
     root: np.ndarray
@@ -77,6 +78,8 @@ class DeflectorGeometry:
     """Length of the face along ``tangent`` [m]."""
     height: float
     """Height of the face [m]."""
+    overhang: float = 0.0
+    """Length of the sheet beyond the belt edge, upstream of ``root`` [m], >= 0."""
 
     def __post_init__(self) -> None:
         for name in ("root", "tangent", "normal"):
@@ -88,6 +91,12 @@ class DeflectorGeometry:
     def point(self) -> np.ndarray:
         """A point on the face [m], shape (3,) (the root)."""
         return self.root
+
+    @property
+    def outer_end(self) -> np.ndarray:
+        """Bottom corner at the sheet's outer end, ``overhang`` beyond the belt edge [m],
+        shape (3,)."""
+        return self.root - self.overhang * self.tangent
 
     @property
     def tip(self) -> np.ndarray:
@@ -106,7 +115,7 @@ class DeflectorGeometry:
         unbounded plane), shape (...)."""
         a, b, off = self.face_coordinates(points)
         # tangent, e_z and normal are orthonormal: the offsets from the rectangle add in squares
-        da = a - np.clip(a, 0.0, self.length)
+        da = a - np.clip(a, -self.overhang, self.length)
         db = b - np.clip(b, 0.0, self.height)
         return np.sqrt(da * da + db * db + off * off)
 
@@ -119,6 +128,7 @@ class DeflectorGeometry:
             "normal": self.normal.tolist(),
             "length": float(self.length),
             "height": float(self.height),
+            "overhang": float(self.overhang),
         }
 
 
@@ -138,6 +148,11 @@ class ConveyorScene:
         deflector_height: [m] in (0, 1].
         deflector_thickness: steel sheet thickness [m] in (0, 0.05]: the face mesh lies
             half of it behind the upstream face (see the module docstring).
+        deflector_overhang: length of each sheet beyond the belt edge [m] in [0, 1], where
+            it would be fixed to the conveyor's frame. Our choice (the paper's deflectors
+            are "fixed in space"): with the sheet ending at the belt edge, packaging hanging
+            over the edge goes round its free end (measured in the paper's scene, KP at the
+            second deflector), which a real deflector fixed to the frame does not allow.
         side_guides: add unbounded guide planes along both belt edges.
     """
 
@@ -149,6 +164,7 @@ class ConveyorScene:
     centre_gap: float = 0.03
     deflector_height: float = 0.1
     deflector_thickness: float = 0.002
+    deflector_overhang: float = 0.1
     side_guides: bool = False
 
     def __post_init__(self) -> None:
@@ -159,6 +175,7 @@ class ConveyorScene:
             "deflector_angle_deg": ("in [10, 90] deg", lambda v: 10.0 <= v <= 90.0),
             "deflector_height": ("in (0, 1] m", lambda v: 0.0 < v <= 1.0),
             "deflector_thickness": ("in (0, 0.05] m", lambda v: 0.0 < v <= 0.05),
+            "deflector_overhang": ("in [0, 1] m", lambda v: 0.0 <= v <= 1.0),
         }
         for name, (allowed, ok) in ranges.items():
             v = _number(name, getattr(self, name))
@@ -214,6 +231,7 @@ class ConveyorScene:
                     normal=normal,
                     length=span / math.sin(th),
                     height=self.deflector_height,
+                    overhang=self.deflector_overhang,
                 )
             )
         return tuple(out)
@@ -247,8 +265,8 @@ def _face_mesh(g: DeflectorGeometry) -> tuple[np.ndarray, np.ndarray]:
     over the face, counter-clockwise seen from the upstream side. Face contact takes the
     closest point on a triangle, so a flat face needs few triangles; cells about as long as
     the face is high keep them well shaped."""
-    n = max(1, math.ceil(g.length / g.height))
-    a = np.linspace(0.0, g.length, n + 1)
+    n = max(1, math.ceil((g.overhang + g.length) / g.height))
+    a = np.linspace(-g.overhang, g.length, n + 1)
     bottom = g.root + a[:, None] * g.tangent
     top = bottom + np.array([0.0, 0.0, g.height])
     pts = np.vstack([bottom, top])  # bottom i, top n + 1 + i
@@ -282,11 +300,11 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
         pts, tris = _face_mesh(g)
         t, h = scene.deflector_thickness, g.height
         pts = pts - 0.5 * t * g.normal  # the sheet's mid-plane
-        centre = g.root + 0.5 * g.length * g.tangent + np.array([0.0, 0.0, 0.5 * h])
+        centre = g.root + 0.5 * (g.length - g.overhang) * g.tangent + np.array([0, 0, 0.5 * h])
         # a sheet-thick column at the face centre with the sheet's mass: a RoundedBox cannot be
         # turned to the deflector angle at build time, and a fixed body's shape only matters
         # for body contact, which the deflector does not use
-        shape = RoundedBox(t, t, h, mass=_STEEL_DENSITY * g.length * t * h)
+        shape = RoundedBox(t, t, h, mass=_STEEL_DENSITY * (g.overhang + g.length) * t * h)
         body = builder.add_rigid_body(shape, tuple(centre), motion="fixed")
         bodies.append(body)
         vertices.append(builder.add_rigid_mesh(pts, tris, body))

@@ -276,7 +276,7 @@ def check_layout(layout: SceneLayout, builds: Mapping[str, ConsignmentBuild]) ->
                 f"{q[:, 1].max():.3f} m; it must lie on the belt, y in [{-half:g}, {half:g}] m"
             )
         for k, g in enumerate(c.deflectors()):
-            seg = np.array([g.root[:2], g.tip[:2]])
+            seg = np.array([g.outer_end[:2], g.tip[:2]])
             if not _separated(q, seg):
                 raise ValueError(
                     f"placement {p.name!r}: its footprint overlaps deflector {k} (root at x = "
@@ -416,7 +416,8 @@ _BELT_KEYS = {"length_m": "belt_length", "width_m": "belt_width", "speed_m_s": "
               "side_guides": "side_guides"}  # fmt: skip
 _DEFLECTOR_KEYS = {"angle_deg": "deflector_angle_deg", "x_m": "deflector_x",
                    "centre_gap_m": "centre_gap", "height_m": "deflector_height",
-                   "thickness_m": "deflector_thickness"}  # fmt: skip
+                   "thickness_m": "deflector_thickness",
+                   "overhang_m": "deflector_overhang"}  # fmt: skip
 _PLACEMENT_KEYS = {"name", "consignment", "x_m", "y_m", "yaw_deg", "speed_m_s"}
 
 
@@ -700,7 +701,7 @@ def deflector_normal_forces(cm: ConveyorModel, result: SimulationResult) -> dict
         for g in cm.parts.deflectors:
             a, zz, dist = g.face_coordinates(p)
             s = h - dist
-            on = (a >= 0.0) & (a <= g.length) & (zz >= -h) & (zz <= g.height) & (s > 0.0)
+            on = (a >= -g.overhang) & (a <= g.length) & (zz >= -h) & (zz <= g.height) & (s > 0.0)
             on &= dist > -0.5 * cm.parts.scene.deflector_thickness  # the upstream side
             rate = -(v @ g.normal)
             for k, i in zip(*np.nonzero(on), strict=True):
@@ -731,7 +732,7 @@ def deflector_crossings(
         for g in cm.parts.deflectors:
             a, zz, dist = g.face_coordinates(p)
             behind = -dist - half  # beyond the mid-plane [m]
-            on = (a >= 0.0) & (a <= g.length) & (zz >= 0.0) & (zz <= g.height)
+            on = (a >= -g.overhang) & (a <= g.length) & (zz >= 0.0) & (zz <= g.height)
             hit |= (on & (behind > 0.0) & (behind < depth)).any(axis=1)
         out[name] = float(t[np.argmax(hit)]) if hit.any() else None
     return out

@@ -34,7 +34,7 @@ def _belt(ax, scene: ConveyorScene) -> None:
     ax.add_patch(Rectangle((0.0, -w / 2), scene.belt_length * 1e3, w, facecolor=BELT_COLOUR,
                            edgecolor="k", linewidth=0.6, zorder=0))  # fmt: skip
     for g in scene.deflectors():
-        p = 1e3 * np.array([g.root, g.tip])
+        p = 1e3 * np.array([g.outer_end, g.tip])
         ax.plot(p[:, 0], p[:, 1], color=DEFLECTOR_COLOUR, linewidth=2.5, zorder=3)
 
 
@@ -160,14 +160,15 @@ def animate_conveyor(
         ax3.add_collection3d(Poly3DCollection(belt, facecolor=BELT_COLOUR, alpha=0.5))
         faces = []
         for g in scene.deflectors():
-            a, b = g.root * 1e3, g.tip * 1e3
+            a, b = g.outer_end * 1e3, g.tip * 1e3
             up = np.array([0.0, 0.0, g.height * 1e3])
             faces.append([a, b, b + up, a + up])
         ax3.add_collection3d(Poly3DCollection(faces, facecolor=DEFLECTOR_COLOUR, alpha=0.6))
         ax3.set_xlim(0, lx)
-        ax3.set_ylim(-w / 2, w / 2)
+        reach = max([w / 2] + [abs(g.outer_end[1]) * 1e3 for g in scene.deflectors()])
+        ax3.set_ylim(-reach, reach)
         ax3.set_zlim(0, hmax)
-        ax3.set_box_aspect((lx, w, 3 * hmax))
+        ax3.set_box_aspect((lx, 2 * reach, 3 * hmax))
         ax3.view_init(elev=30, azim=-60)
         ax3.set_xlabel("x [mm]")
         ax3.set_ylabel("y [mm]")
