@@ -119,7 +119,7 @@ def _newton(model, state, lam, time, tol, max_iterations, solver, span, zeros_v)
         t = asm.reduction(model, state.rotations)
         if t is not None:
             kg = asm.link_geometric_stiffness(model, r, state.rotations, t)
-            mat, r = (t.T @ mat @ t + kg).tocsr(), t.T @ r
+            mat, r = (asm.reduced_matrix(model, mat, t) + kg).tocsr(), t.T @ r
         try:
             solver.factor(mat)
         except SingularMatrixError:
