@@ -4,8 +4,10 @@ fixed 45 deg deflectors reaching almost to the belt centre line, from alternatin
 World frame: the belt runs along +x from x = 0 to x = ``belt_length``, its surface is z = 0,
 its centre line is y = 0, it spans |y| <= ``belt_width`` / 2. Deflector k starts at the belt
 edge (its *root*, at x = ``deflector_x[k]``) and runs downstream at ``deflector_angle_deg`` to
-the belt direction until its *tip*, ``centre_gap`` short of the centre line. The first
-deflector comes from the y > 0 side, the next from y < 0, and so on.
+the belt direction until its *tip*, ``centre_gap`` short of the centre line; upstream of the
+root the sheet runs on ``deflector_overhang`` (0.1 m) beyond the belt edge, where a real
+deflector is fixed to the conveyor's frame. The first deflector comes from the y > 0 side,
+the next from y < 0, and so on.
 
 Modelling choices (they differ from the paper, which uses a shell belt on driven rollers):
 
