@@ -11,7 +11,7 @@ from conftest import SHEET_T, soft_contact_law
 from flexparcel.contact.law import ContactLaw
 from flexparcel.elements.rotations import rotation_exp
 from flexparcel.model.rigid import RoundedBox
-from flexparcel.scenarios.conveyor import ConveyorScene, add_conveyor
+from flexparcel.scenarios.conveyor import ConveyorScene, DeflectorGeometry, add_conveyor
 from flexparcel.scenarios.conveyor_responses import conveyor_responses
 from flexparcel.scenarios.friction_pairs import (
     BELT,
@@ -434,6 +434,12 @@ def test_response_bad_input():
 def test_bad_scene_parameters_name_the_field(kwargs, message):
     with pytest.raises(ValueError, match=message):
         ConveyorScene(**kwargs)
+
+
+def test_deflector_geometry_refuses_a_negative_overhang():
+    g = ConveyorScene().deflectors()[0]
+    with pytest.raises(ValueError, match=r"DeflectorGeometry\.overhang must be >= 0 m, got -0\.01"):
+        DeflectorGeometry(g.root, g.tangent, g.normal, g.length, g.height, overhang=-0.01)
 
 
 def test_friction_table_defaults_and_lookups():

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flexparcel.model.builder import ModelBuilder
+from flexparcel.model.checks import finite_number
 from flexparcel.model.rigid import RoundedBox
 
 __all__ = ["ConveyorScene", "DeflectorGeometry", "ConveyorParts", "add_conveyor"]
@@ -84,6 +85,10 @@ class DeflectorGeometry:
     """Length of the sheet beyond the belt edge, upstream of ``root`` [m], >= 0."""
 
     def __post_init__(self) -> None:
+        overhang = finite_number("DeflectorGeometry.overhang", self.overhang)
+        if overhang < 0.0:
+            raise ValueError(f"DeflectorGeometry.overhang must be >= 0 m, got {overhang:g}")
+        object.__setattr__(self, "overhang", overhang)
         for name in ("root", "tangent", "normal"):
             v = np.array(getattr(self, name), dtype=float)  # a private, read-only copy
             v.flags.writeable = False
