@@ -163,6 +163,10 @@ def test_scene_file_default_queue_takes_the_paper_conveyor(tmp_path):
             HEAD + 'consignments = ["KP"]\n[deflectors]\nangle_deg = 95\n',
             r"angle_deg must be in \[10, 90\] deg",
         ),  # fmt: skip
+        (
+            HEAD + 'consignments = ["KP"]\n[deflectors]\noverhang_m = -0.1\n',
+            r"overhang_m must be in \[0, 1\] m, got -0.1",
+        ),  # fmt: skip
         (HEAD + 'consignments = ["KP"]\n[belt]\nlength = 3\n', r"\[belt\]: unknown key"),
         (HEAD + 'consignments = ["KP"]\n[deflectors]\nx_m = 1.0\n', "x_m must be a non-empty"),
         (HEAD + '[[consignment]]\nconsignment = "KP"\n', "consignment\\[0\\]: missing key 'x_m'"),
