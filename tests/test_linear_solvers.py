@@ -14,24 +14,28 @@ from flexparcel.integrate.linear import (
 )
 
 
-def _blocks(sizes, seed=0):
+def _blocks(sizes, seed=0, interleave=True):
     """Nonsymmetric, diagonally dominant sparse blocks, shuffled together so that each
     block's rows are interleaved with the others' (as the bodies of a model are not
-    numbered block by block when contacts couple them)."""
+    numbered block by block when contacts couple them), or with ``interleave=False`` one
+    after another (the consignments of a conveyor, each numbered together)."""
     rng = np.random.default_rng(seed)
     mats = []
     for n in sizes:
         m = sp.random(n, n, density=min(1.0, 6.0 / n), random_state=rng, format="csr")
         mats.append(m + sp.eye(n) * (2.0 + abs(m).sum(axis=1).max()))
     a = sp.block_diag(mats, format="csr")
+    if not interleave:
+        return a
     p = rng.permutation(a.shape[0])
     return a[p][:, p].tocsr()
 
 
+@pytest.mark.parametrize("interleave", [True, False])
 @pytest.mark.parametrize("workers", [1, 2, 3])
 @pytest.mark.parametrize("sizes", [(40,), (40, 7, 1, 25)])
-def test_block_superlu_solves_like_superlu(workers, sizes):
-    a = _blocks(sizes)
+def test_block_superlu_solves_like_superlu(workers, sizes, interleave):
+    a = _blocks(sizes, interleave=interleave)
     b = np.random.default_rng(1).standard_normal(a.shape[0])
     ref = LinearSolver()
     ref.factor(a)
@@ -44,7 +48,7 @@ def test_block_superlu_solves_like_superlu(workers, sizes):
     assert np.linalg.norm(a @ x - b) <= 1e-13 * np.linalg.norm(b)
     np.testing.assert_array_equal(s.precondition(b), x)
     # refactoring another matrix replaces the factors
-    a2 = _blocks(sizes, seed=2)
+    a2 = _blocks(sizes, seed=2, interleave=interleave)
     s.factor(a2)
     assert np.linalg.norm(a2 @ s.solve(b) - b) <= 1e-13 * np.linalg.norm(b)
     assert s.factor_count == 2 and s.solve_count == 2
