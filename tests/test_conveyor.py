@@ -212,6 +212,23 @@ def test_conveyor_parts_geometry_and_face_meshes():
     assert first.distance(first.outer_end - 0.01 * first.tangent) == pytest.approx(0.01)
 
 
+def _sheet_dragged_to_deflector(scene, corner_xy, size, t_end):
+    """A square sheet of the KP/BW material, ``size`` [m] with 10 mm quads and its corner at
+    ``corner_xy`` [m], lying on the belt of ``scene`` (friction 0.3) and touching the first
+    deflector's face mesh, simulated for ``t_end`` [s]: (result, sheet node ids, parts)."""
+    b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
+    parts = add_conveyor(b, scene)
+    n = round(size / 0.01)
+    pts, quads = fp.mesh.rectangle(size, size, n, n, origin=(*corner_xy, SHEET_T / 2))
+    mat = fp.ShellMaterial(926e6, 0.1, 2424.0, SHEET_T, 1.71e-3)
+    sheet = b.add_shell_mesh(pts, quads, material=mat)
+    law = soft_contact_law()
+    b.add_contact(sheet, parts.belt_plane, law, radius=SHEET_T / 2)
+    thick = parts.deflector_contact_thickness(SHEET_T / 2)
+    b.add_face_contact(sheet, parts.deflector_vertices[0], law, thickness=thick)
+    return fp.simulate(b.finalize(), t_end, dt_out=0.01), sheet, parts
+
+
 def test_shell_sheet_is_stopped_by_the_deflector_face_mesh():
     # The path packaging takes: shell nodes against a deflector's triangle mesh
     # (add_face_contact with parts.deflector_vertices). A 60 mm sheet of the KP/BW material
@@ -220,18 +237,11 @@ def test_shell_sheet_is_stopped_by_the_deflector_face_mesh():
     # would cross the face plane; with it they stay on the upstream side (a node rests at
     # half its thickness, 0.15 mm, from the face) and the sheet is pushed along the face,
     # towards the belt centre.
-    b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
-    parts = add_conveyor(b)
-    g = parts.deflectors[0]
+    g = ConveyorScene().deflectors()[0]
     c = g.point + 0.15 * g.tangent + 0.05 * g.normal
-    pts, quads = fp.mesh.rectangle(0.06, 0.06, 6, 6, origin=(c[0] - 0.03, c[1] - 0.03, SHEET_T / 2))
-    mat = fp.ShellMaterial(926e6, 0.1, 2424.0, SHEET_T, 1.71e-3)
-    sheet = b.add_shell_mesh(pts, quads, material=mat)
-    law = soft_contact_law()
-    b.add_contact(sheet, parts.belt_plane, law, radius=SHEET_T / 2)
-    thick = parts.deflector_contact_thickness(SHEET_T / 2)
-    b.add_face_contact(sheet, parts.deflector_vertices[0], law, thickness=thick)
-    r = fp.simulate(b.finalize(), 0.2, dt_out=0.01)
+    r, sheet, parts = _sheet_dragged_to_deflector(
+        ConveyorScene(), (c[0] - 0.03, c[1] - 0.03), 0.06, 0.2
+    )
     p = r.positions[:, sheet]
     side = (p - g.point) @ g.normal  # signed distance from the face plane [m], (k, n)
     assert side[0].min() == pytest.approx(0.05 - 0.03 * np.sqrt(2.0))
@@ -252,17 +262,8 @@ def test_packaging_beside_the_belt_meets_the_deflector_overhang(overhang):
     # the centre line; with no overhang the deflector ends at the belt edge (y = 0.3 m) and
     # the sheet passes its free end (in the paper's scene KP's film went round it).
     scene = ConveyorScene(deflector_overhang=overhang)
-    b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
-    parts = add_conveyor(b, scene)
+    r, sheet, parts = _sheet_dragged_to_deflector(scene, (0.68, 0.31), 0.04, 0.3)
     g = parts.deflectors[0]
-    pts, quads = fp.mesh.rectangle(0.04, 0.04, 4, 4, origin=(0.68, 0.31, SHEET_T / 2))
-    mat = fp.ShellMaterial(926e6, 0.1, 2424.0, SHEET_T, 1.71e-3)
-    sheet = b.add_shell_mesh(pts, quads, material=mat)
-    law = soft_contact_law()
-    b.add_contact(sheet, parts.belt_plane, law, radius=SHEET_T / 2)
-    thick = parts.deflector_contact_thickness(SHEET_T / 2)
-    b.add_face_contact(sheet, parts.deflector_vertices[0], law, thickness=thick)
-    r = fp.simulate(b.finalize(), 0.3, dt_out=0.01)
     p = r.positions[:, sheet]
     side = (p - g.point) @ g.normal  # signed distance from the face plane [m], (k, n)
     assert side[0].min() == pytest.approx(0.03 / np.sqrt(2.0))

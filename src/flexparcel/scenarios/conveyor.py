@@ -117,6 +117,14 @@ class DeflectorGeometry:
         d = np.asarray(points, dtype=float) - self.root
         return d @ self.tangent, d[..., 2], d @ self.normal
 
+    def over_face(self, points: np.ndarray, below: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance [m] of ``points`` [m], shape (..., 3), from the face plane (> 0 on
+        the upstream side), and whether each projects onto the face rectangle, taken
+        ``below`` [m] further down than its bottom edge; each shape (...)."""
+        a, z, off = self.face_coordinates(points)
+        on = (a >= -self.overhang) & (a <= self.length) & (z >= -below) & (z <= self.height)
+        return off, on
+
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Distance [m] from ``points`` [m], shape (..., 3), to the face rectangle (not the
         unbounded plane), shape (...)."""

@@ -699,10 +699,9 @@ def deflector_normal_forces(cm: ConveyorModel, result: SimulationResult) -> dict
         v = result.velocities[:, c.packaging, :3]
         total = np.zeros(len(t))
         for g in cm.parts.deflectors:
-            a, zz, dist = g.face_coordinates(p)
+            dist, on = g.over_face(p, below=h)
             s = h - dist
-            on = (a >= -g.overhang) & (a <= g.length) & (zz >= -h) & (zz <= g.height) & (s > 0.0)
-            on &= dist > -0.5 * cm.parts.scene.deflector_thickness  # the upstream side
+            on &= (s > 0.0) & (dist > -0.5 * cm.parts.scene.deflector_thickness)  # upstream
             rate = -(v @ g.normal)
             for k, i in zip(*np.nonzero(on), strict=True):
                 total[k] += normal_force_packed(float(s[k, i]), float(rate[k, i]), law)[0]
@@ -730,9 +729,8 @@ def deflector_crossings(
         p = positions[:, c.packaging]  # (k, m, 3)
         hit = np.zeros(len(t), dtype=bool)
         for g in cm.parts.deflectors:
-            a, zz, dist = g.face_coordinates(p)
+            dist, on = g.over_face(p)
             behind = -dist - half  # beyond the mid-plane [m]
-            on = (a >= -g.overhang) & (a <= g.length) & (zz >= 0.0) & (zz <= g.height)
             hit |= (on & (behind > 0.0) & (behind < depth)).any(axis=1)
         out[name] = float(t[np.argmax(hit)]) if hit.any() else None
     return out

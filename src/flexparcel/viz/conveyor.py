@@ -159,13 +159,14 @@ def animate_conveyor(
         belt = [[(0, -w / 2, 0), (lx, -w / 2, 0), (lx, w / 2, 0), (0, w / 2, 0)]]
         ax3.add_collection3d(Poly3DCollection(belt, facecolor=BELT_COLOUR, alpha=0.5))
         faces = []
-        for g in scene.deflectors():
+        deflectors = scene.deflectors()
+        for g in deflectors:
             a, b = g.outer_end * 1e3, g.tip * 1e3
             up = np.array([0.0, 0.0, g.height * 1e3])
             faces.append([a, b, b + up, a + up])
         ax3.add_collection3d(Poly3DCollection(faces, facecolor=DEFLECTOR_COLOUR, alpha=0.6))
         ax3.set_xlim(0, lx)
-        reach = max([w / 2] + [abs(g.outer_end[1]) * 1e3 for g in scene.deflectors()])
+        reach = max([w / 2] + [abs(g.outer_end[1]) * 1e3 for g in deflectors])
         ax3.set_ylim(-reach, reach)
         ax3.set_zlim(0, hmax)
         ax3.set_box_aspect((lx, 2 * reach, 3 * hmax))
