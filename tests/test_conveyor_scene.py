@@ -37,6 +37,7 @@ from flexparcel.scenarios.conveyor_scene import (
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "consignment_small.toml"
 SCENE = ROOT / "examples" / "conveyor_scene.toml"
+PAPER_SNAPSHOTS = ROOT / "data" / "paper-snapshots-25mm"
 PRESETS = {k: ConsignmentBuild.of(k) for k in ("KPBW", "PB", "KP", "BW")}
 
 
@@ -257,6 +258,28 @@ def test_content_law_replaces_the_packaging_content_contact(snapshot_dir):
     # laws stay
     assert 64.9e3 in soft[:, P_C] and 64.9e3 in soft[:, P_K_T]
     assert len(soft) == len(stiff) + 1 and 649e3 in soft[:, P_C]
+
+
+def test_flexible_content_meets_the_belt_past_the_film_mid_surface():
+    """PB's content nodes are belt contact points of radius half the film thickness with the
+    film's belt law: a backstop for the face-inner content nodes, which bulge through the film
+    between its nodes (session 14's 2 s run: 0.84 mm below the belt). A rigid content (KP/BW's
+    box) gets none."""
+    snaps = {k: load_snapshot(PAPER_SNAPSHOTS / f"{k}.npz") for k in ("KPBW", "PB")}
+    cm = build_conveyor_model(snaps, default_layout({k: s.build for k, s in snaps.items()}))
+    m = cm.model
+    on_belt = m.cp_plane == cm.parts.belt_plane
+    pb, kpbw = cm.consignments["PB"], cm.consignments["KPBW"]
+    content = on_belt & np.isin(m.cp_node, pb.content_nodes)
+    film = on_belt & np.isin(m.cp_node, pb.packaging)
+    assert sorted(m.cp_node[content]) == sorted(pb.content_nodes)
+    assert np.allclose(m.cp_radius[content], pb.contact_radius)
+    assert pb.contact_radius == pytest.approx(0.03e-3)  # PB's 0.06 mm film
+    assert set(m.cp_law[content]) == set(m.cp_law[film]) and len(set(m.cp_law[film])) == 1
+    assert not np.isin(m.cp_node[on_belt], kpbw.content_nodes).any()
+    # placed on the belt, PB's content rests on its film, clear of the backstop
+    z = cm.state0.positions[pb.content_nodes, 2]
+    assert z.min() > pb.contact_radius
 
 
 def test_pair_reach_keeps_only_neighbours(snapshot_dir):

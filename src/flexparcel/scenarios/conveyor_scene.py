@@ -20,11 +20,16 @@ Contacts added (SI units, laws of :mod:`flexparcel.contact.law`):
   the faces of the other; thickness: the mean of the two half thicknesses): the paper's
   Table 6 packaging-content law (649 N/mm, 0.579 N s/mm) with friction 0.3 (the paper gives no
   packaging-packaging value; ``consignment_friction``). With ``pair_reach`` set, only pairs
-  whose footprints start closer than that are paired (see :func:`build_conveyor_model`).
+  whose footprints start closer than that are paired (see :func:`build_conveyor_model`);
+* a flexible content's nodes (PB) vs the belt plane, radius half the packaging thickness,
+  with the packaging's belt law: a backstop for the content's face-inner nodes, which can
+  bulge through the film between its nodes (they do not meet the film's faces); resting on
+  the film the content stays clear of it.
 
 What is not modelled: a rigid content touching the belt, a deflector or another consignment
-directly (only shell nodes can touch triangle meshes; the content is inside its packaging,
-which touches first); the packaging's own edges against the deflector (node-to-face only).
+directly, and a flexible content touching a deflector or another consignment (only shell
+nodes can touch triangle meshes; the content is inside its packaging, which touches first);
+the packaging's own edges against the deflector (node-to-face only).
 
 Footprints (overlap checks, the default layout): the flat packaging rectangle of the
 consignment's build, ``flat_size`` plus KP/BW's glued strip on the +x side, in the
@@ -643,6 +648,15 @@ def build_conveyor_model(
         ld = with_friction(ground, surface, DEFLECTOR, friction_table)
         laws[p.name] = {"belt": lb, "deflector": ld}
         b.add_contact(c.packaging, parts.belt_plane, lb, radius=c.contact_radius)
+        if c.content_body is None:
+            # A flexible content's nodes meet the film's nodes, and its edges the film's
+            # faces, but its face-inner nodes do not meet the film's faces (see
+            # add_consignment): between film nodes they bulge through the film. On the belt
+            # nothing stopped them: PB's content dipped up to 0.84 mm below the belt in
+            # session 14's 2 s run. They now meet the belt once they pass the film's
+            # mid-surface (radius: half the film thickness), with the film's belt law, as
+            # the film would carry them there. Resting on the film they stay clear of it.
+            b.add_contact(c.content_nodes, parts.belt_plane, lb, radius=c.contact_radius)
         for verts in parts.deflector_vertices:
             thick = parts.deflector_contact_thickness(c.contact_radius)
             b.add_face_contact(c.packaging, verts, ld, thickness=thick)
