@@ -260,11 +260,12 @@ def test_content_law_replaces_the_packaging_content_contact(snapshot_dir):
     assert len(soft) == len(stiff) + 1 and 649e3 in soft[:, P_C]
 
 
-def test_flexible_content_meets_the_belt_past_the_film_mid_surface():
+def test_contents_meet_the_belt_once_through_their_packaging():
     """PB's content nodes are belt contact points of radius half the film thickness with the
     film's belt law: a backstop for the face-inner content nodes, which bulge through the film
     between its nodes (session 14's 2 s run: 0.84 mm below the belt). A rigid content (KP/BW's
-    box) gets none."""
+    box) meets the belt by its 8 rounded corners with its packaging's belt law (session 15's
+    run: 2.1 mm below the belt without)."""
     snaps = {k: load_snapshot(PAPER_SNAPSHOTS / f"{k}.npz") for k in ("KPBW", "PB")}
     cm = build_conveyor_model(snaps, default_layout({k: s.build for k, s in snaps.items()}))
     m = cm.model
@@ -276,10 +277,19 @@ def test_flexible_content_meets_the_belt_past_the_film_mid_surface():
     assert np.allclose(m.cp_radius[content], pb.contact_radius)
     assert pb.contact_radius == pytest.approx(0.03e-3)  # PB's 0.06 mm film
     assert set(m.cp_law[content]) == set(m.cp_law[film]) and len(set(m.cp_law[film])) == 1
-    assert not np.isin(m.cp_node[on_belt], kpbw.content_nodes).any()
-    # placed on the belt, PB's content rests on its film, clear of the backstop
+    box = on_belt & (m.cp_node == kpbw.content_body)
+    box_film = on_belt & np.isin(m.cp_node, kpbw.packaging)
+    i = int(np.flatnonzero(m.rigid_nodes == kpbw.content_body)[0])
+    assert box.sum() == 8 and np.allclose(m.cp_radius[box], m.rigid_radius[i])
+    corners = np.abs(m.cp_offset[box])  # the inner box's corners in the box's frame
+    assert np.allclose(corners, m.rigid_half_inner[i])
+    assert set(m.cp_law[box]) == set(m.cp_law[box_film]) and len(set(m.cp_law[box_film])) == 1
+    # placed on the belt, each content rests on its packaging, clear of its backstop
     z = cm.state0.positions[pb.content_nodes, 2]
     assert z.min() > pb.contact_radius
+    rot = cm.state0.rotations[kpbw.content_body]
+    low = cm.state0.positions[kpbw.content_body, 2] - np.abs(rot[2]) @ m.rigid_half_inner[i]
+    assert low - m.rigid_radius[i] > 2 * kpbw.contact_radius
 
 
 def test_pair_reach_keeps_only_neighbours(snapshot_dir):

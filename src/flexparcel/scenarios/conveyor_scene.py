@@ -21,15 +21,15 @@ Contacts added (SI units, laws of :mod:`flexparcel.contact.law`):
   Table 6 packaging-content law (649 N/mm, 0.579 N s/mm) with friction 0.3 (the paper gives no
   packaging-packaging value; ``consignment_friction``). With ``pair_reach`` set, only pairs
   whose footprints start closer than that are paired (see :func:`build_conveyor_model`);
-* a flexible content's nodes (PB) vs the belt plane, radius half the packaging thickness,
-  with the packaging's belt law: a backstop for the content's face-inner nodes, which can
-  bulge through the film between its nodes (they do not meet the film's faces); resting on
-  the film the content stays clear of it.
+* the content vs the belt plane, with the packaging's belt law, as a backstop: a flexible
+  content's nodes (PB) with radius half the packaging thickness (its face-inner nodes do not
+  meet the film's faces and can bulge through the film between its nodes), a rigid content's
+  rounded box by its corners (its edges can pass between the film's nodes). Resting on its
+  packaging a content stays clear of it.
 
-What is not modelled: a rigid content touching the belt, a deflector or another consignment
-directly, and a flexible content touching a deflector or another consignment (only shell
-nodes can touch triangle meshes; the content is inside its packaging, which touches first);
-the packaging's own edges against the deflector (node-to-face only).
+What is not modelled: a content touching a deflector or another consignment directly (only
+shell nodes can touch triangle meshes; the content is inside its packaging, which touches
+first); the packaging's own edges against the deflector (node-to-face only).
 
 Footprints (overlap checks, the default layout): the flat packaging rectangle of the
 consignment's build, ``flat_size`` plus KP/BW's glued strip on the +x side, in the
@@ -657,6 +657,12 @@ def build_conveyor_model(
             # mid-surface (radius: half the film thickness), with the film's belt law, as
             # the film would carry them there. Resting on the film they stay clear of it.
             b.add_contact(c.content_nodes, parts.belt_plane, lb, radius=c.contact_radius)
+        else:
+            # The same for a rigid content: a box's rounded edge can pass between the film's
+            # nodes too (session 15's run: KP/BW's box 2.1 mm and KP's 2.0 mm below the belt
+            # while tilted at a deflector, in 27 and 16 of 201 frames by more than 0.5 mm).
+            # Its corners (the lowest points of a box over a plane) meet the belt itself.
+            b.add_contact(c.content_body, parts.belt_plane, lb)
         for verts in parts.deflector_vertices:
             thick = parts.deflector_contact_thickness(c.contact_radius)
             b.add_face_contact(c.packaging, verts, ld, thickness=thick)
