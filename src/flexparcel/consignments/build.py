@@ -49,6 +49,7 @@ __all__ = [
     "ConsignmentBuild",
     "preset",
     "add_consignment",
+    "add_ground_contact",
     "default_packaging_content_law",
 ]
 
@@ -327,6 +328,25 @@ def add_consignment(
         content_box=(lc, wc, hc),
         glue=glue,
     )
+
+
+def add_ground_contact(b: ModelBuilder, c: Consignment, plane: int, law: ContactLaw) -> None:
+    """Contact of consignment ``c`` with ground plane ``plane`` (a belt, a plate) by ``law``:
+    its packaging nodes with its contact radius (half the packaging thickness), and its
+    content as a backstop with the same law.
+
+    The backstop: a flexible content's nodes with half the packaging thickness (its
+    face-inner nodes meet the film's nodes but not its faces, see :func:`add_consignment`,
+    and bulge through the film between them: PB's content went 0.84 mm below the belt in a
+    2 s conveyor run without it), a rigid content's rounded box by its corners, the lowest
+    points of a box over a plane (its rounded edges pass between the film's nodes too:
+    KP/BW's box went 2.08 mm below the belt while tilted against a deflector). A content
+    resting on its packaging stays clear of it."""
+    b.add_contact(c.packaging, plane, law, radius=c.contact_radius)
+    if c.content_body is None:
+        b.add_contact(c.content_nodes, plane, law, radius=c.contact_radius)
+    else:
+        b.add_contact(c.content_body, plane, law)
 
 
 def _block_face_count(points: np.ndarray) -> np.ndarray:

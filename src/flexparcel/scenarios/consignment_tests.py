@@ -29,7 +29,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from flexparcel.consignments.build import Consignment, add_consignment
+from flexparcel.consignments.build import Consignment, add_consignment, add_ground_contact
 from flexparcel.consignments.snapshot import Snapshot, place_snapshot
 from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
@@ -247,7 +247,7 @@ def drop_test(
     _, ground = _laws(p, stick_model)
     plate = b.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
     thickness = 2.0 * c.contact_radius
-    b.add_contact(c.packaging, plate, ground, radius=c.contact_radius)
+    add_ground_contact(b, c, plate, ground)  # packaging, and content as a backstop
     rot = None
     if orientation == "vertical":
         # +x edge down: rotate +90 deg about y (x -> -z)

@@ -53,6 +53,7 @@ from flexparcel.consignments.build import (
     Consignment,
     ConsignmentBuild,
     add_consignment,
+    add_ground_contact,
     default_packaging_content_law,
 )
 from flexparcel.consignments.snapshot import Snapshot, place_snapshot
@@ -647,22 +648,7 @@ def build_conveyor_model(
         lb = with_friction(ground, surface, BELT, friction_table)
         ld = with_friction(ground, surface, DEFLECTOR, friction_table)
         laws[p.name] = {"belt": lb, "deflector": ld}
-        b.add_contact(c.packaging, parts.belt_plane, lb, radius=c.contact_radius)
-        if c.content_body is None:
-            # A flexible content's nodes meet the film's nodes, and its edges the film's
-            # faces, but its face-inner nodes do not meet the film's faces (see
-            # add_consignment): between film nodes they bulge through the film. On the belt
-            # nothing stopped them: PB's content dipped up to 0.84 mm below the belt in
-            # session 14's 2 s run. They now meet the belt once they pass the film's
-            # mid-surface (radius: half the film thickness), with the film's belt law, as
-            # the film would carry them there. Resting on the film they stay clear of it.
-            b.add_contact(c.content_nodes, parts.belt_plane, lb, radius=c.contact_radius)
-        else:
-            # The same for a rigid content: a box's rounded edge can pass between the film's
-            # nodes too (session 15's run: KP/BW's box 2.1 mm and KP's 2.0 mm below the belt
-            # while tilted at a deflector, in 27 and 16 of 201 frames by more than 0.5 mm).
-            # Its corners (the lowest points of a box over a plane) meet the belt itself.
-            b.add_contact(c.content_body, parts.belt_plane, lb)
+        add_ground_contact(b, c, parts.belt_plane, lb)  # packaging, and content as a backstop
         for verts in parts.deflector_vertices:
             thick = parts.deflector_contact_thickness(c.contact_radius)
             b.add_face_contact(c.packaging, verts, ld, thickness=thick)
