@@ -14,7 +14,9 @@ Contacts added (SI units, laws of :mod:`flexparcel.contact.law`):
   friction of the packaging's outer surface on the PU belt
   (:mod:`flexparcel.scenarios.friction_pairs`);
 * packaging shell nodes vs each deflector's mid-plane mesh (thickness: half the packaging
-  thickness plus half the sheet's, so the nodes meet the upstream face): the same normal law,
+  thickness plus half the sheet's, so the nodes meet the upstream face), and each deflector's
+  tip edge vs the packaging's faces (line contact, the same thickness, see
+  :func:`~flexparcel.scenarios.conveyor.add_deflector_contact`): the same normal law,
   friction of the surface on X6Cr17 steel;
 * packaging vs packaging of two different consignments, both ways (the nodes of each against
   the faces of the other; thickness: the mean of the two half thicknesses): the paper's
@@ -29,7 +31,8 @@ Contacts added (SI units, laws of :mod:`flexparcel.contact.law`):
 
 What is not modelled: a content touching a deflector or another consignment directly (only
 shell nodes can touch triangle meshes; the content is inside its packaging, which touches
-first); the packaging's own edges against the deflector (node-to-face only).
+first); the deflector's top and bottom edges against packaging faces (only its tip edge,
+which consignments pass round, has line contact).
 
 Footprints (overlap checks, the default layout): the flat packaging rectangle of the
 consignment's build, ``flat_size`` plus KP/BW's glued strip on the +x side, in the
@@ -63,7 +66,12 @@ from flexparcel.io.tomlfile import read_toml
 from flexparcel.model.builder import Model, ModelBuilder, State
 from flexparcel.model.checks import finite_number
 from flexparcel.scenarios.consignment_tests import consignment_options
-from flexparcel.scenarios.conveyor import ConveyorParts, ConveyorScene, add_conveyor
+from flexparcel.scenarios.conveyor import (
+    ConveyorParts,
+    ConveyorScene,
+    add_conveyor,
+    add_deflector_contact,
+)
 from flexparcel.scenarios.conveyor_responses import ConsignmentResponse, conveyor_responses
 from flexparcel.scenarios.friction_pairs import (
     BELT,
@@ -649,9 +657,7 @@ def build_conveyor_model(
         ld = with_friction(ground, surface, DEFLECTOR, friction_table)
         laws[p.name] = {"belt": lb, "deflector": ld}
         add_ground_contact(b, c, parts.belt_plane, lb)  # packaging, and content as a backstop
-        for verts in parts.deflector_vertices:
-            thick = parts.deflector_contact_thickness(c.contact_radius)
-            b.add_face_contact(c.packaging, verts, ld, thickness=thick)
+        add_deflector_contact(b, parts, c.packaging, ld, shell_half_thickness=c.contact_radius)
     pp_law = replace(default_packaging_content_law(), mu_static=mu, mu_dynamic=mu)
     names = [p.name for p in layout.placements]
     centre = {p.name: np.array([p.x, p.y]) for p in layout.placements}
