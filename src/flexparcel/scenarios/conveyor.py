@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from flexparcel.contact.law import ContactLaw
 from flexparcel.model.builder import ModelBuilder
 from flexparcel.model.checks import finite_number
 from flexparcel.model.rigid import RoundedBox
@@ -312,9 +313,8 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
 
     Contact pairs are left to the caller, who knows the consignments and their laws:
     ``builder.add_contact(nodes, parts.belt_plane, law, radius=t / 2)`` for the belt,
-    ``builder.add_face_contact(nodes, parts.deflector_vertices[k], law,
-    thickness=parts.deflector_contact_thickness(t / 2))`` for shell nodes (thickness t) against
-    deflector k.
+    ``add_deflector_contact(builder, parts, nodes, law, shell_half_thickness=t / 2)`` for a
+    shell mesh (thickness t) against the deflectors (their faces and tip edges).
     """
     scene = scene if scene is not None else ConveyorScene()
     if not isinstance(scene, ConveyorScene):
@@ -363,8 +363,8 @@ TIP_STATION_SPACING = 5e-3
 def add_deflector_contact(
     builder: ModelBuilder,
     parts: ConveyorParts,
-    node_ids,
-    law,
+    node_ids: np.ndarray,
+    law: ContactLaw,
     *,
     shell_half_thickness: float,
 ) -> None:
