@@ -276,8 +276,8 @@ class ConveyorParts:
     ``add_face_contact``, with :meth:`deflector_contact_thickness`), shape (v,) each."""
     deflectors: tuple[DeflectorGeometry, ...]
     deflector_tips: tuple[np.ndarray, ...] = field(default=())
-    """Node ids (bottom, top) of each deflector mesh's tip edge, the vertical edge near the
-    belt's centre line, shape (2,) each."""
+    """Node ids of each deflector mesh's tip edge, the vertical edge near the belt's centre
+    line, bottom to top (its segments, see :data:`TIP_SEGMENT_LENGTH`), shape (m + 1,) each."""
     side_guide_planes: tuple[int, ...] = field(default=())
     """Plane ids of the guides at y = +width/2 and y = -width/2, or () if none."""
 
@@ -287,24 +287,40 @@ class ConveyorParts:
         return float(shell_half_thickness) + 0.5 * self.scene.deflector_thickness
 
 
-def _face_mesh(g: DeflectorGeometry) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (2 (n + 1), 3) [m] and triangles (2 n, 3) of a strip of n near-square cells
-    over the face, counter-clockwise seen from the upstream side. Face contact takes the
-    closest point on a triangle, so a flat face needs few triangles; cells about as long as
-    the face is high keep them well shaped."""
+TIP_SEGMENT_LENGTH = 25e-3
+"""Length [m] of the segments a deflector's tip edge is cut into (the face mesh's rows): the
+paper's conveyor mesh size. Each segment's stations together carry the contact law once
+(:meth:`~flexparcel.model.builder.ModelBuilder.add_edge_face_contact`), so the tip holds a
+face as firmly per length as packaging nodes 25 mm apart hold on the face."""
+
+TIP_STATION_SPACING = 5e-3
+"""Spacing [m] of the contact stations along a deflector's tip edge, a fifth of a segment:
+a packaging face draped over the tip meets several of them."""
+
+
+def _face_mesh(g: DeflectorGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vertices ((n + 1) (m + 1), 3) [m] and triangles (2 n m, 3) of n columns by m rows of
+    cells over the face, counter-clockwise seen from the upstream side, and the tip edge's
+    vertex indices (m + 1,), bottom to top. Face contact takes the closest point on a
+    triangle, so a flat face needs few columns (cells about as long as the face is high);
+    the rows, about :data:`TIP_SEGMENT_LENGTH` high, cut the tip edge into segments."""
     n = max(1, math.ceil((g.overhang + g.length) / g.height))
+    m = max(1, math.ceil(g.height / TIP_SEGMENT_LENGTH - 1e-9))
     a = np.linspace(-g.overhang, g.length, n + 1)
-    bottom = g.root + a[:, None] * g.tangent
-    top = bottom + np.array([0.0, 0.0, g.height])
-    pts = np.vstack([bottom, top])  # bottom i, top n + 1 + i
-    i = np.arange(n)
-    quads = np.column_stack([i, i + 1, n + 2 + i, n + 1 + i])
+    z = np.linspace(0.0, g.height, m + 1)
+    # vertex (row j, column i) is j (n + 1) + i: row 0 at the belt, column n at the tip
+    pts = g.root + a[None, :, None] * g.tangent + z[:, None, None] * np.array([0.0, 0.0, 1.0])
+    pts = pts.reshape(-1, 3)
+    j, i = np.meshgrid(np.arange(m), np.arange(n), indexing="ij")
+    v0 = (j * (n + 1) + i).ravel()
+    quads = np.column_stack([v0, v0 + 1, v0 + n + 2, v0 + n + 1])
     tris = np.vstack([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     # orient the triangles so that their right-hand normal is the upstream normal
     p = pts[tris[0]]
     if np.cross(p[1] - p[0], p[2] - p[0]) @ g.normal < 0.0:
         tris = tris[:, [0, 2, 1]]
-    return pts, tris.astype(np.int64)
+    tip = np.arange(m + 1) * (n + 1) + n
+    return pts, tris.astype(np.int64), tip
 
 
 def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> ConveyorParts:
@@ -323,9 +339,7 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
     bodies, vertices, tips = [], [], []
     geometry = scene.deflectors()
     for g in geometry:
-        pts, tris = _face_mesh(g)
-        n = len(pts) // 2 - 1
-        tip = np.array([n, 2 * n + 1])  # _face_mesh: bottom i, top n + 1 + i; the tip is last
+        pts, tris, tip = _face_mesh(g)
         t, h = scene.deflector_thickness, g.height
         pts = pts - 0.5 * t * g.normal  # the sheet's mid-plane
         centre = g.root + 0.5 * (g.length - g.overhang) * g.tangent + np.array([0, 0, 0.5 * h])
@@ -355,11 +369,6 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
     )
 
 
-TIP_STATION_SPACING = 5e-3
-"""Spacing [m] of the contact stations along a deflector's tip edge: a fifth of the paper's
-25 mm conveyor mesh, so a packaging face draped over the tip meets several stations."""
-
-
 def add_deflector_contact(
     builder: ModelBuilder,
     parts: ConveyorParts,
@@ -371,15 +380,17 @@ def add_deflector_contact(
     """Contact of a shell mesh (``node_ids``: its nodes, e.g. a packaging; half thickness
     ``shell_half_thickness`` [m]) with every deflector of ``parts`` by ``law``: its nodes
     against each deflector's mid-plane mesh (:meth:`ConveyorParts.deflector_contact_thickness`),
-    and each deflector's tip edge against its faces (line contact, stations every
-    :data:`TIP_STATION_SPACING`, the same thickness: the sheet's end rounded by half its
-    thickness). Node-to-face contact alone lets a face wrapped round the tip pass through
-    it between its nodes: in session 15's 2 s run faces came within 0.07 mm of the tip edge's
-    mid-plane line, 1.2 mm inside the contact thickness."""
+    and each deflector's tip edge against its faces (line contact, the same thickness: the
+    sheet's end rounded by half its thickness; stations every :data:`TIP_STATION_SPACING`,
+    each segment of :data:`TIP_SEGMENT_LENGTH` carrying the law once). Node-to-face contact
+    alone lets a face wrapped round the tip pass through it between its nodes: in session
+    15's 2 s run faces came within 0.07 mm of the tip edge's mid-plane line, 1.2 mm inside the
+    contact thickness."""
     thick = parts.deflector_contact_thickness(shell_half_thickness)
     for verts, tip, g in zip(
         parts.deflector_vertices, parts.deflector_tips, parts.deflectors, strict=True
     ):
         builder.add_face_contact(node_ids, verts, law, thickness=thick)
-        samples = max(1, math.ceil(g.height / TIP_STATION_SPACING))
+        segment = g.height / (len(tip) - 1)
+        samples = max(1, math.ceil(segment / TIP_STATION_SPACING - 1e-9))
         builder.add_edge_face_contact(tip, node_ids, law, thickness=thick, samples=samples)
