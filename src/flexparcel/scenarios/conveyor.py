@@ -383,9 +383,10 @@ def add_deflector_contact(
     and each deflector's tip edge against its faces (line contact, the same thickness: the
     sheet's end rounded by half its thickness; stations every :data:`TIP_STATION_SPACING`,
     each segment of :data:`TIP_SEGMENT_LENGTH` carrying the law once). Node-to-face contact
-    alone lets a face wrapped round the tip pass through it between its nodes: in session
-    15's 2 s run faces came within 0.07 mm of the tip edge's mid-plane line, 1.2 mm inside the
-    contact thickness."""
+    alone lets a face pressed on the tip pass through it between its nodes. Not covered: an
+    element edge of the shell crossing the tip edge (edge-to-edge contact). In the paper
+    scene's 2 s runs, packaging edges wrapped round the tip came up to 1.2 mm inside the
+    contact thickness, with or without the tip's line contact."""
     thick = parts.deflector_contact_thickness(shell_half_thickness)
     for verts, tip, g in zip(
         parts.deflector_vertices, parts.deflector_tips, parts.deflectors, strict=True
