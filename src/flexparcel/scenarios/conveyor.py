@@ -275,7 +275,7 @@ class ConveyorParts:
     """Node ids of each deflector's mid-plane mesh vertices (``face_node_ids`` of
     ``add_face_contact``, with :meth:`deflector_contact_thickness`), shape (v,) each."""
     deflectors: tuple[DeflectorGeometry, ...]
-    deflector_tips: tuple[np.ndarray, ...] = field(default=())
+    deflector_tips: tuple[np.ndarray, ...]
     """Node ids of each deflector mesh's tip edge, the vertical edge near the belt's centre
     line, bottom to top (its segments, see :data:`TIP_SEGMENT_LENGTH`), shape (m + 1,) each."""
     side_guide_planes: tuple[int, ...] = field(default=())
