@@ -22,9 +22,12 @@ def test_sheet_lands_on_sheet_and_rests_at_the_contact_thickness():
     # contact stiffness, m_node g / c = 6e-6 m, so within 0.05 mm; it never passes through;
     # and the impact does not gain energy (the impact step limit resolves the contact
     # oscillation; without it the rebound rose above the drop height): rebound < half the drop.
+    # At 0.1 s the sheet still bounces by up to 0.1 mm (vz ~ 0.05 m/s at 0.096 s with numpy
+    # 2.4 / numba 0.68 / scipy 1.17; with earlier versions that frame fell between bounces):
+    # it is at rest by 0.2 s (median 1e-7 m off).
     t, drop = 0.3e-3, 0.005
     model, up = _stack(drop, t)
-    r = fp.simulate(model, 0.1, dt_out=0.002)
+    r = fp.simulate(model, 0.2, dt_out=0.002)
     z = r.positions[:, up, 2]
     assert z.min() > 0.0  # never through the lower sheet
     # (the free corners may still curl up slightly while settling: allow 0.2 mm there)
