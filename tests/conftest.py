@@ -85,3 +85,16 @@ def small_assembly(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("small") / "assembly"
     assert main(["assemble", str(SMALL_CONSIGNMENT), "--out", str(out), "--no-progress"]) == 0
     return out
+
+
+@pytest.fixture(scope="session")
+def snapshot_dir(tmp_path_factory) -> Path:
+    """DIR/consignment_small/snapshot.npz: the small example consignment
+    (examples/consignment_small.toml), assembled once for the session."""
+    from flexparcel.cli import main
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "consignment_small.toml"
+    d = tmp_path_factory.mktemp("snaps")
+    out = d / "consignment_small"
+    assert main(["assemble", str(example), "--out", str(out), "--no-progress"]) == 0
+    return d

@@ -202,15 +202,6 @@ def test_missing_scene_file(tmp_path):
 # ------------------------------------------------------------------------------ model + run
 
 
-@pytest.fixture(scope="module")
-def snapshot_dir(tmp_path_factory) -> Path:
-    """DIR/consignment_small/snapshot.npz: the small example, assembled once."""
-    d = tmp_path_factory.mktemp("snaps")
-    out = d / "consignment_small"
-    assert main(["assemble", str(EXAMPLE), "--out", str(out), "--no-progress"]) == 0
-    return d
-
-
 def test_place_snapshot_at_a_node_offset(snapshot_dir):
     snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
     key = "consignment_small"

@@ -29,7 +29,7 @@ from flexparcel.io.checkpoint import (
 )
 from flexparcel.model.builder import Model, State
 
-__all__ = ["SimulationResult", "simulate"]
+__all__ = ["SimulationResult", "simulate", "state_energies"]
 
 
 @dataclass
@@ -56,7 +56,9 @@ class SimulationResult:
         return self.positions - self.positions[0]
 
 
-def _energies(model: Model, state: State) -> tuple[float, float, float]:
+def state_energies(model: Model, state: State) -> tuple[float, float, float]:
+    """(kinetic, strain, gravity potential) energy [J] of ``state``; gravity's is zero in the
+    reference configuration."""
     _, strain = asm.internal_forces(
         model, state.positions, state.rotations, np.zeros_like(state.velocities)
     )
@@ -120,11 +122,13 @@ def simulate(
             "model": model_fingerprint(model),
             "initial_state": state_fingerprint(s),
             "options": json.loads(json.dumps(asdict(integ.opt))),
+            "mode": "one-model",  # not the conveyor's group-by-group integration
         }
         if checkpoint_only and not Path(checkpoint).exists():
             raise FileNotFoundError(f"simulate: no checkpoint {checkpoint} to read")
         if Path(checkpoint).exists():
             resumed = load_checkpoint(checkpoint)
+            resumed.header.setdefault("mode", "one-model")  # written before groups existed
             check_same_run(
                 checkpoint, resumed.header, {k: v for k, v in header.items() if k != "version"}
             )
@@ -146,7 +150,7 @@ def simulate(
         rec_x.append(st.positions.copy())
         rec_r.append(rotation_vectors(st.rotations))
         rec_v.append(st.velocities.copy())
-        rec_e.append(_energies(model, st))
+        rec_e.append(state_energies(model, st))
 
     def save(complete: bool) -> None:
         frames = {

@@ -74,6 +74,7 @@ from flexparcel.scenarios.conveyor import (
     add_conveyor,
     add_deflector_contact,
 )
+from flexparcel.scenarios.conveyor_groups import GroupSettings, integrate_by_groups
 from flexparcel.scenarios.conveyor_responses import ConsignmentResponse, conveyor_responses
 from flexparcel.scenarios.friction_pairs import (
     BELT,
@@ -841,6 +842,7 @@ def run_conveyor(
     checkpoint: str | Path | None = None,
     checkpoint_only: bool = False,
     content_law: ContactLaw | None = None,
+    groups: GroupSettings | None = None,
 ) -> ConveyorRun:
     """Build the scene (:func:`build_conveyor_model`), simulate ``t_end`` [s] in (0, 10]
     recording every ``dt_out`` [s], and compute each consignment's responses
@@ -850,7 +852,10 @@ def run_conveyor(
     Integrator defaults: :func:`conveyor_options`. ``checkpoint``: a ``.npz`` path the run
     saves itself to about once a minute and resumes from (see :func:`flexparcel.simulate`);
     with ``checkpoint_only`` the run is what that file holds so far (no stepping).
-    ``content_law``: see :func:`build_conveyor_model`.
+    ``content_law``: see :func:`build_conveyor_model`. ``groups``: integrate consignments
+    that cannot touch as separate models in parallel workers
+    (:func:`~flexparcel.scenarios.conveyor_groups.integrate_by_groups`); None: the whole
+    scene as one model.
     """
     t_end = finite_number("t_end", t_end)
     if not 0.0 < t_end <= 10.0:
@@ -863,9 +868,17 @@ def run_conveyor(
                               pair_reach=pair_reach, content_law=content_law)  # fmt: skip
     build_wall = time.perf_counter() - w0
     opts = options or conveyor_options()
-    res = simulate(cm.model, t_end, dt_out=dt_out, options=opts, state=cm.state0,
-                   progress=progress, checkpoint=checkpoint,
-                   checkpoint_only=checkpoint_only)  # fmt: skip
+    if groups is None:
+        res = simulate(cm.model, t_end, dt_out=dt_out, options=opts, state=cm.state0,
+                       progress=progress, checkpoint=checkpoint,
+                       checkpoint_only=checkpoint_only)  # fmt: skip
+    else:
+        build = {"friction_table": friction_table, "pair_reach": pair_reach,
+                 "content_law": content_law}  # fmt: skip
+        res = integrate_by_groups(cm, snapshots, t_end, dt_out=dt_out, options=opts,
+                                  build_kwargs=build, settings=groups, progress=progress,
+                                  checkpoint=checkpoint,
+                                  checkpoint_only=checkpoint_only)  # fmt: skip
     wall = res.stats["wall_s"]["total"]  # with the wall time before a resumption
     forces = deflector_normal_forces(cm, res)
     responses = conveyor_responses(

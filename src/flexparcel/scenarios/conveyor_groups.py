@@ -1,0 +1,724 @@
+"""A conveyor scene integrated group by group: consignments that cannot touch each other are
+stepped as separate models, each with its own step size, in parallel worker processes.
+
+Why: the consignments of a scene interact only through packaging-packaging contact
+(:func:`~flexparcel.scenarios.conveyor_scene.build_conveyor_model`); the belt and the
+deflectors are prescribed. Integrated as one model, every consignment takes the step that the
+hardest one needs at that moment (PB's film pressed on a deflector sets 0.1 ms steps for
+all four) and a Newton failure anywhere rejects the step everywhere. Apart, each takes its
+own steps, and the groups run on separate cores (design brief section 2: "exploit that
+separate consignments only couple through contact").
+
+How (a co-simulation with exact coupling, synchronised at every output frame):
+
+* A *group* is a set of placements integrated as one model: the conveyor plus those
+  consignments, built by :func:`build_conveyor_model` on the sub-layout, with every
+  contact of the full scene among its members. At t = 0 each placement is its own group
+  unless it starts within merge distance of another.
+* All groups advance to the next output frame. At each frame, for every two groups whose
+  consignments have contact in the full scene, the gap between their node bounding boxes
+  is compared with ``reach + 2 dt_out (|u_A - u_B| + s_A + s_B) + merge_slack`` (u: mean
+  node velocity of a group, s: the largest node speed about it; reach: the two packaging
+  contact radii, more than their face contact thickness). Groups within it are merged
+  before the next frame: the merged model takes the members' states and integrator
+  histories (algorithmic accelerations, stick springs and anchors, matched by node and
+  contact), so no contact between them can open before they are one model.
+* Each frame is checked as well: two groups closer than ``reach`` (they could touch) mean
+  the prediction missed; both are then rewound to the frame before, merged, and that frame
+  is integrated again together (``stats["groups"]["rewinds"]``).
+* Groups never split again.
+
+What differs from one model: each group's step sizes and error estimate are its own, so the
+frames agree with a one-model run within the integrator's tolerances, not bit for bit.
+Moving a group from one worker to another (load balancing: the groups are dealt to the
+workers largest measured cost first) restores its integrator history exactly, so the
+result does not depend on the worker count. The checkpoint holds every group's state and
+history at a frame, and a resumed run continues bit for bit.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing as mp
+import time as _time
+import traceback
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from flexparcel.elements.rotations import rotation_vectors
+from flexparcel.integrate.dynamic import GeneralizedAlpha, IntegratorOptions, Stats
+from flexparcel.io.checkpoint import (
+    CHECKPOINT_FORMAT,
+    CHECKPOINT_VERSION,
+    RunCheckpoint,
+    check_same_run,
+    load_checkpoint,
+    model_fingerprint,
+    save_checkpoint,
+    state_fingerprint,
+)
+from flexparcel.model.builder import State
+from flexparcel.simulate import SimulationResult, state_energies
+
+__all__ = ["GroupSettings", "integrate_by_groups", "box_gap"]
+
+
+@dataclass(frozen=True)
+class GroupSettings:
+    """How :func:`integrate_by_groups` runs.
+
+    Attributes:
+        workers: worker processes (>= 1; 1 runs the groups in this process, one after
+            another: the groups still take their own steps).
+        threads_per_worker: numba threads of each worker (>= 1).
+        merge_slack: extra gap [m] >= 0 below which two groups are merged.
+        rebalance_frames: frames between load-balancing checks (>= 1).
+    """
+
+    workers: int = 2
+    threads_per_worker: int = 1
+    merge_slack: float = 0.005
+    rebalance_frames: int = 10
+
+    def __post_init__(self) -> None:
+        for key in ("workers", "threads_per_worker", "rebalance_frames"):
+            v = getattr(self, key)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ValueError(f"GroupSettings.{key} must be an integer >= 1, got {v!r}")
+        s = float(self.merge_slack)
+        if not (np.isfinite(s) and s >= 0.0):
+            raise ValueError(f"GroupSettings.merge_slack must be >= 0 m, got {self.merge_slack!r}")
+
+
+def box_gap(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray) -> float:
+    """Euclidean distance [m] between two axis-aligned boxes (corners (3,)); 0 if they
+    overlap."""
+    d = np.maximum(0.0, np.maximum(lo_b - hi_a, lo_a - hi_b))
+    return float(np.sqrt(d @ d))
+
+
+# ------------------------------------------------------------------ one group's integration
+
+
+def _set_key(nodes: np.ndarray, tris: np.ndarray, thickness: float) -> str:
+    """Identity of a node-face contact set in full-scene numbering."""
+    h = hashlib.sha256()
+    for a in (nodes, tris, np.array(float(thickness))):
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+class _Group:
+    """One group's model, integrator and state (in a worker). ``export`` and ``from_exports``
+    carry its state and integrator history in full-scene numbering, keyed by node and
+    contact, so that a model of other members can take them over."""
+
+    def __init__(self, setup: dict, names: tuple[str, ...], exports: list[dict] | None):
+        from flexparcel.scenarios.conveyor_scene import SceneLayout, build_conveyor_model
+
+        layout = setup["layout"]
+        sub = SceneLayout(
+            layout.conveyor,
+            tuple(p for p in layout.placements if p.name in names),
+            layout.gap_above_belt,
+        )
+        cm = build_conveyor_model(setup["snapshots"], sub, **setup["build"])
+        self.names = names
+        self.model = cm.model
+        # sub-model node -> full-scene node: the conveyor's nodes come first in both
+        full_ids = setup["full_ids"]
+        n_conv = min(int(c.node_ids.min()) for c in cm.consignments.values())
+        self.full = np.empty(cm.model.node_count, np.int64)
+        self.full[:n_conv] = np.arange(n_conv)
+        for name, c in cm.consignments.items():
+            self.full[c.node_ids] = full_ids[name]
+        self.integ = GeneralizedAlpha(cm.model, setup["options"])
+        m = cm.model
+        self._cp_keys = [
+            (int(self.full[n]), int(pl), *map(float, off))
+            for n, pl, off in zip(m.cp_node, m.cp_plane, m.cp_offset, strict=True)
+        ]
+        f = self.full
+        self._bp_keys = [(int(f[n]), int(f[b])) for n, b in zip(m.bp_node, m.bp_box, strict=True)]
+        self._face_keys = [_set_key(f[fs[0]], f[fs[1]], fs[2]) for fs in m.face_sets]
+        self.wall = 0.0  # wall time of the last advance [s]
+        sched = list(m.schedules) + [m.gravity_schedule]
+        self._breaks = sorted({float(b) for s in sched for b in s.breakpoints()})
+        if exports is None:
+            self.state = cm.state0.copy()
+            self.integ.initialize(self.state)
+        else:
+            self._take(exports)
+        self._start = self.export()
+
+    # the integrator scalars (GeneralizedAlpha._HISTORY_SCALARS) a merged model starts from:
+    # the smallest step and Newton cap of its members, a fresh rate measurement
+    def _merged_scalars(self, exports: list[dict]) -> np.ndarray:
+        names = GeneralizedAlpha._HISTORY_SCALARS
+        s = np.array([e["scalars"] for e in exports])
+        out = np.array(self.integ.history()["scalars"], dtype=float)
+        for k, name in enumerate(names):
+            if name in ("h", "_h_cap"):
+                out[k] = s[:, k].min()
+            elif name in ("_last_rate", "_impact_w2"):
+                out[k] = s[:, k].max()
+        return out
+
+    def _take(self, exports: list[dict]) -> None:
+        """State and history from the members' exports (all at one time)."""
+        m = self.model
+        pos = m.positions0.copy()
+        rot = np.broadcast_to(np.eye(3), (m.node_count, 3, 3)).copy()
+        vel = np.zeros((m.node_count, 6))
+        acc = np.zeros((m.node_count, 6))
+        self.integ._alg = np.zeros((m.node_count, 6))  # restore_history replaces it
+        hist = self.integ.history()
+        where = {}
+        for e in exports:
+            where.update({int(n): (e, k) for k, n in enumerate(e["nodes"])})
+        for k, full in enumerate(self.full):
+            e, j = where[int(full)]
+            pos[k], rot[k], vel[k], acc[k] = (
+                e["positions"][j], e["rotations"][j], e["velocities"][j], e["accelerations"][j]
+            )  # fmt: skip
+            hist["alg"][k] = e["alg"][j]
+            hist["fc_prev"][k] = e["fc_prev"][j]
+        cp = {}
+        bp = {}
+        faces = {}
+        for e in exports:
+            cp.update(zip(map(tuple, e["cp_key"].tolist()), e["u_el"], strict=True))
+            held = zip(e["box_anchor"], e["box_has"], strict=True)
+            bp.update(zip(map(tuple, e["bp_key"].tolist()), held, strict=True))
+            faces.update({
+                str(key): (e[f"face_anchor_{i}"], e[f"face_has_{i}"])
+                for i, key in enumerate(e["face_key"])
+            })  # fmt: skip
+        for k, key in enumerate(self._cp_keys):
+            if key in cp:
+                hist["u_el"][k] = cp[key]
+        for k, key in enumerate(self._bp_keys):
+            if key in bp:
+                hist["box_anchor"][k], hist["box_has"][k] = bp[key]
+        for i, key in enumerate(self._face_keys):
+            if key in faces:  # a set between two former groups has no history yet
+                hist[f"face_anchor_{i}"], hist[f"face_has_{i}"] = faces[key]
+        if len(exports) == 1:
+            hist["scalars"] = exports[0]["scalars"]
+            hist["stat_counts"] = exports[0]["stat_counts"]
+            hist["stat_wall"] = exports[0]["stat_wall"]
+        else:
+            hist["scalars"] = self._merged_scalars(exports)
+        self.integ.restore_history(hist)
+        self.state = State(float(exports[0]["time"]), pos, rot, vel, acc)
+
+    def export(self) -> dict:
+        """State and integrator history at the current time, in full-scene numbering."""
+        s, hist = self.state, self.integ.history()
+        out = {
+            "time": np.array(s.time),
+            "nodes": self.full.copy(),
+            "positions": s.positions.copy(),
+            "rotations": s.rotations.copy(),
+            "velocities": s.velocities.copy(),
+            "accelerations": s.accelerations.copy(),
+            "cp_key": np.array(self._cp_keys, dtype=float).reshape(-1, 5),
+            "bp_key": np.array(self._bp_keys, dtype=np.int64).reshape(-1, 2),
+            "face_key": np.array(self._face_keys, dtype="U64"),
+        }
+        out.update({k: v for k, v in hist.items()})
+        return out
+
+    def advance(self, t_out: float) -> dict:
+        """Step to ``t_out`` [s]; returns the frame in full-scene numbering."""
+        self._start = self.export()
+        w0 = _time.perf_counter()
+        s = self.state
+        while s.time < t_out - 1e-12 * max(1.0, abs(t_out)):
+            nxt = [b for b in self._breaks if s.time + 1e-12 < b < t_out]
+            s = self.integ.step(s, nxt[0] if nxt else t_out)
+        s.time = float(t_out)
+        self.state = s
+        self.wall = _time.perf_counter() - w0
+        return self.frame()
+
+    def frame(self) -> dict:
+        s = self.state
+        return {
+            "nodes": self.full,
+            "positions": s.positions.copy(),
+            "rotations": s.rotations.copy(),
+            "velocities": s.velocities.copy(),
+            "wall": self.wall,
+            "stats": asdict(self.integ.stats),
+        }
+
+    def rewind(self) -> dict:
+        """The export from before the last :meth:`advance`."""
+        return self._start
+
+
+class _Worker:
+    """The groups one process owns, driven by commands (see :func:`_serve`)."""
+
+    def __init__(self, setup: dict) -> None:
+        self.setup = setup
+        self.groups: dict[int, _Group] = {}
+
+    def handle(self, cmd: str, arg):
+        if cmd == "create":  # (key, names, exports or None) -> frame
+            key, names, exports = arg
+            self.groups[key] = _Group(self.setup, tuple(names), exports)
+            return self.groups[key].frame()
+        if cmd == "advance":  # (keys, t_out) -> {key: frame}
+            keys, t_out = arg
+            return {k: self.groups[k].advance(t_out) for k in keys}
+        if cmd == "export":  # key -> export now
+            return self.groups[arg].export()
+        if cmd == "rewind":  # key -> export from before the last advance
+            return self.groups[arg].rewind()
+        if cmd == "drop":
+            del self.groups[arg]
+            return None
+        raise ValueError(f"unknown worker command {cmd!r}")
+
+
+def _serve(conn, setup: dict, threads: int) -> None:
+    """Worker process: answer commands until told to stop; errors go back as text."""
+    import numba
+
+    numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    worker = _Worker(setup)
+    while True:
+        cmd, arg = conn.recv()
+        if cmd == "stop":
+            break
+        try:
+            conn.send(("ok", worker.handle(cmd, arg)))
+        except Exception as e:  # noqa: BLE001 - every failure goes back to the coordinator
+            conn.send(("error", (type(e).__name__, str(e), traceback.format_exc())))
+    conn.close()
+
+
+class _LocalHandle:
+    """A worker in this process (``workers=1``)."""
+
+    def __init__(self, setup: dict) -> None:
+        self.worker = _Worker(setup)
+        self._reply = None
+
+    def send(self, cmd: str, arg) -> None:
+        self._reply = self.worker.handle(cmd, arg)
+
+    def recv(self):
+        return self._reply
+
+    def close(self) -> None:
+        pass
+
+
+class _ProcessHandle:
+    """A worker process; :meth:`send` does not wait, so several work at once."""
+
+    def __init__(self, setup: dict, threads: int) -> None:
+        ctx = mp.get_context("spawn")  # no fork of a process that may hold thread pools
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_serve, args=(child, setup, threads), daemon=True)
+        self.proc.start()
+        child.close()
+
+    def send(self, cmd: str, arg) -> None:
+        self.conn.send((cmd, arg))
+
+    def recv(self):
+        while not self.conn.poll(1.0):
+            if not self.proc.is_alive():  # died without a word (killed, out of memory)
+                raise RuntimeError(
+                    f"conveyor group worker (pid {self.proc.pid}) exited with code "
+                    f"{self.proc.exitcode} without answering"
+                )
+        status, value = self.conn.recv()
+        if status == "error":
+            name, msg, tb = value
+            from flexparcel.integrate.errors import ConvergenceError
+
+            if name == "ConvergenceError":
+                raise ConvergenceError(msg)
+            raise RuntimeError(f"conveyor group worker failed: {name}: {msg}\n{tb}")
+        return value
+
+    def close(self) -> None:
+        try:
+            self.conn.send(("stop", None))
+        except (BrokenPipeError, OSError):
+            pass
+        self.proc.join(timeout=10)
+        if self.proc.is_alive():
+            self.proc.terminate()
+
+
+# ------------------------------------------------------------------ the coordinator
+
+
+@dataclass
+class _GroupInfo:
+    names: tuple[str, ...]
+    worker: int
+    nodes: np.ndarray  # full-scene node ids of the members' consignments
+    costs: list = field(default_factory=list)  # wall per frame [s]
+    stats: dict = field(default_factory=dict)
+
+
+def _add_stats(total: dict, st: dict) -> None:
+    for k, v in st.items():
+        if k == "wall_s":
+            w = total.setdefault("wall_s", {})
+            for p, x in v.items():
+                w[p] = w.get(p, 0.0) + x
+        else:
+            total[k] = total.get(k, 0) + v
+
+
+def _export_arrays(prefix: str, e: dict) -> dict:
+    return {f"{prefix}{k}": np.asarray(v) for k, v in e.items()}
+
+
+def _import_arrays(prefix: str, arrays: dict) -> dict:
+    return {k[len(prefix) :]: v for k, v in arrays.items() if k.startswith(prefix)}
+
+
+def integrate_by_groups(
+    cm,
+    snapshots: Mapping,
+    t_end: float,
+    *,
+    dt_out: float,
+    options: IntegratorOptions,
+    build_kwargs: dict,
+    settings: GroupSettings | None = None,
+    progress: Callable[[float, float], None] | None = None,
+    checkpoint: str | Path | None = None,
+    checkpoint_interval_s: float = 60.0,
+    checkpoint_only: bool = False,
+) -> SimulationResult:
+    """Integrate the scene ``cm`` (a :class:`~flexparcel.scenarios.conveyor_scene.ConveyorModel`
+    built from ``snapshots`` with ``build_kwargs``) from its ``state0`` to ``t_end`` [s]
+    group by group (module docstring), recording every ``dt_out`` [s].
+
+    Returns a :class:`~flexparcel.simulate.SimulationResult` of the full scene's model (frames
+    in its node numbering, energies of the full model). ``stats`` sums the groups'
+    integrator statistics and adds ``groups``: the groups at the end, the merges (time and
+    members), rewinds and the wall time of each worker. ``checkpoint``: as for
+    :func:`flexparcel.simulate` (same file format; a one-model checkpoint is refused).
+    """
+    settings = settings or GroupSettings()
+    model = cm.model
+    t0 = cm.state0.time
+    n_out = int(np.floor((t_end - t0) / dt_out + 1e-9))
+    out_times = t0 + dt_out * np.arange(1, n_out + 1)
+    if out_times.size == 0 or out_times[-1] < t_end - 1e-12:
+        out_times = np.append(out_times, t_end)
+    names = [p.name for p in cm.layout.placements]
+    cons = cm.consignments
+    can_touch = {frozenset(p) for p in cm.consignment_pairs}
+    radius = {k: c.contact_radius for k, c in cons.items()}
+    header = {
+        "format": CHECKPOINT_FORMAT,
+        "t0": float(t0),
+        "t_end": float(t_end),
+        "dt_out": float(dt_out),
+        "node_count": model.node_count,
+        "model": model_fingerprint(model),
+        "initial_state": state_fingerprint(cm.state0),
+        "options": asdict(options),
+        "mode": "groups",
+    }
+    header["options"] = json.loads(json.dumps(header["options"]))
+    resumed = None
+    if checkpoint is not None and Path(checkpoint).exists():
+        resumed = load_checkpoint(checkpoint)
+        check_same_run(checkpoint, resumed.header, header)
+    elif checkpoint_only:
+        raise FileNotFoundError(f"integrate_by_groups: no checkpoint {checkpoint} to read")
+
+    full_ids = {k: c.node_ids for k, c in cons.items()}
+    setup = {
+        "snapshots": dict(snapshots),
+        "layout": cm.layout,
+        "build": build_kwargs,
+        "options": options,
+        "full_ids": full_ids,
+    }
+    wall0 = _time.perf_counter()
+    n_workers = settings.workers
+    handles = (
+        [_LocalHandle(setup)]
+        if n_workers == 1
+        else [_ProcessHandle(setup, settings.threads_per_worker) for _ in range(n_workers)]
+    )
+    groups: dict[int, _GroupInfo] = {}
+    retired: dict = {}
+    merges: list = []
+    rewinds = 0
+    worker_wall = [0.0] * n_workers
+    next_key = 0
+    rec_t, rec_x, rec_r, rec_v, rec_e = [], [], [], [], []
+    cur = cm.state0.copy()
+
+    def nodes_of(members) -> np.ndarray:
+        return np.concatenate([full_ids[n] for n in members])
+
+    def load(worker: int) -> float:
+        return sum(np.mean(g.costs[-5:]) if g.costs else g.nodes.size for g in groups.values()
+                   if g.worker == worker)  # fmt: skip
+
+    def create(members, exports, worker=None) -> int:
+        nonlocal next_key
+        key = next_key
+        next_key += 1
+        if worker is None:
+            worker = min(range(n_workers), key=load)
+        h = handles[worker]
+        h.send("create", (key, tuple(members), exports))
+        fr = h.recv()
+        groups[key] = _GroupInfo(tuple(members), worker, nodes_of(members), stats=fr["stats"])
+        return key
+
+    def take_out(key: int, how: str) -> dict:
+        g = groups.pop(key)
+        h = handles[g.worker]
+        h.send(how, key)
+        e = h.recv()
+        h.send("drop", key)
+        h.recv()
+        return e
+
+    def retire(key: int, how: str) -> dict:
+        g = groups[key]
+        _add_stats(retired, g.stats)
+        return take_out(key, how)
+
+    def store(fr: dict) -> None:
+        ids = fr["nodes"]
+        cur.positions[ids] = fr["positions"]
+        cur.rotations[ids] = fr["rotations"]
+        cur.velocities[ids] = fr["velocities"]
+
+    def record() -> None:
+        rec_t.append(cur.time)
+        rec_x.append(cur.positions.copy())
+        rec_r.append(rotation_vectors(cur.rotations))
+        rec_v.append(cur.velocities.copy())
+        rec_e.append(state_energies(model, cur))
+
+    def close_pairs(margin: bool):
+        """Pairs of group keys that must be one model (margin: predicted for the next
+        frame; else: already within reach)."""
+        box = {}
+        for k, g in groups.items():
+            x = cur.positions[g.nodes]
+            v = cur.velocities[g.nodes, :3]
+            u = v.mean(axis=0)
+            box[k] = (x.min(axis=0), x.max(axis=0), u, float(np.sqrt(((v - u) ** 2).sum(1)).max()))
+        out = []
+        keys = sorted(groups)
+        for i, a in enumerate(keys):
+            for b in keys[i + 1 :]:
+                pairs = [(m, n) for m in groups[a].names for n in groups[b].names
+                         if frozenset((m, n)) in can_touch]  # fmt: skip
+                if not pairs:
+                    continue
+                reach = max(radius[m] + radius[n] for m, n in pairs)
+                la, ha, ua, sa = box[a]
+                lb, hb, ub, sb = box[b]
+                lim = reach
+                if margin:
+                    rel = float(np.linalg.norm(ua - ub)) + sa + sb
+                    lim += 2.0 * dt_out * rel + settings.merge_slack
+                if box_gap(la, ha, lb, hb) < lim:
+                    out.append((a, b))
+        return out
+
+    def components(pairs) -> list[list[int]]:
+        parent = {k: k for k in groups}
+
+        def find(k):
+            while parent[k] != k:
+                parent[k] = parent[parent[k]]
+                k = parent[k]
+            return k
+
+        for a, b in pairs:
+            parent[find(a)] = find(b)
+        comp: dict[int, list[int]] = {}
+        for k in groups:
+            comp.setdefault(find(k), []).append(k)
+        return [sorted(c) for c in comp.values() if len(c) > 1]
+
+    def merge(pairs, how: str) -> list[int]:
+        made = []
+        for comp in components(pairs):
+            members = tuple(n for n in names if any(n in groups[k].names for k in comp))
+            exports = [retire(k, how) for k in comp]
+            merges.append({"time": float(exports[0]["time"]), "members": list(members)})
+            made.append(create(members, exports))
+        return made
+
+    def rebalance() -> None:
+        """Deal the groups to the workers largest recent cost first; move those whose
+        worker changes if that shortens the slowest worker by 10 %."""
+        cost = {k: float(np.mean(g.costs[-settings.rebalance_frames :])) for k, g in groups.items()
+                if g.costs}  # fmt: skip
+        if len(cost) != len(groups) or n_workers == 1:
+            return
+        now = [0.0] * n_workers
+        for k, g in groups.items():
+            now[g.worker] += cost[k]
+        new = [0.0] * n_workers
+        assign = {}
+        for k in sorted(cost, key=cost.get, reverse=True):
+            w = int(np.argmin(new))
+            assign[k] = w
+            new[w] += cost[k]
+        if max(new) > 0.9 * max(now):
+            return
+        for k, w in assign.items():
+            if groups[k].worker != w:
+                g = groups[k]
+                e = take_out(k, "export")
+                key = create(g.names, [e], worker=w)
+                groups[key].costs = g.costs
+
+    try:
+        if resumed is None:
+            record()
+            for n in names:
+                create((n,), None)
+            merge(close_pairs(margin=True), "export")
+        else:
+            f = resumed.frames
+            rec_t.extend(f["time"].tolist())
+            rec_x.extend(f["positions"])
+            rec_r.extend(f["rotation_vectors"])
+            rec_v.extend(f["velocities"])
+            rec_e.extend(tuple(e) for e in f["energies"].tolist())
+            cur = resumed.state.copy()
+            info = json.loads(str(resumed.history["groups_json"]))
+            retired = info["retired"]
+            merges = info["merges"]
+            rewinds = info["rewinds"]
+            worker_wall = (info["worker_wall"] + [0.0] * n_workers)[:n_workers]
+            for i, members in enumerate(info["groups"]):
+                create(tuple(members), [_import_arrays(f"g{i}_", resumed.history)])
+            out_times = out_times[out_times > cur.time + 1e-12 * max(1.0, abs(cur.time))]
+            if checkpoint_only:
+                out_times = out_times[:0]
+        wall_before = float(resumed.history.get("wall_total", 0.0)) if resumed else 0.0
+
+        def save(complete: bool) -> None:
+            hist = {"wall_total": np.array(wall_before + _time.perf_counter() - wall0)}
+            info = {
+                "groups": [list(g.names) for g in groups.values()],
+                "retired": retired, "merges": merges, "rewinds": rewinds,
+                "worker_wall": worker_wall,
+            }  # fmt: skip
+            hist["groups_json"] = np.array(json.dumps(info))
+            for i, k in enumerate(groups):
+                h = handles[groups[k].worker]
+                h.send("export", k)
+                hist.update(_export_arrays(f"g{i}_", h.recv()))
+            frames = {
+                "time": np.array(rec_t), "positions": np.array(rec_x),
+                "rotation_vectors": np.array(rec_r), "velocities": np.array(rec_v),
+                "energies": np.array(rec_e),
+            }  # fmt: skip
+            save_checkpoint(
+                checkpoint,
+                RunCheckpoint(
+                    {**header, "version": CHECKPOINT_VERSION, "complete": complete},
+                    frames,
+                    cur,
+                    hist,
+                ),  # fmt: skip
+            )
+
+        last_save = _time.perf_counter()
+        for i_frame, t_out in enumerate(out_times):
+            todo = sorted(groups)
+            while todo:
+                busy = sorted({groups[k].worker for k in todo})
+                t_start = {w: _time.perf_counter() for w in busy}
+                for w in busy:
+                    handles[w].send("advance", ([k for k in todo if groups[k].worker == w], t_out))
+                for w in busy:
+                    for k, fr in handles[w].recv().items():
+                        groups[k].costs.append(fr["wall"])
+                        groups[k].stats = fr["stats"]
+                        store(fr)
+                    worker_wall[w] += _time.perf_counter() - t_start[w]
+                # two groups within reach: the prediction missed; do this frame again together
+                missed = close_pairs(margin=False)
+                todo = []
+                if missed:
+                    rewinds += 1
+                    todo = merge(missed, "rewind")  # merged at the frame before
+            cur.time = float(t_out)
+            record()
+            if progress is not None:
+                progress(cur.time, t_end)
+            merge(close_pairs(margin=True), "export")
+            if (i_frame + 1) % settings.rebalance_frames == 0:
+                rebalance()
+            if checkpoint is not None and t_out != out_times[-1]:
+                if _time.perf_counter() - last_save >= checkpoint_interval_s:
+                    save(complete=False)
+                    last_save = _time.perf_counter()
+        if (
+            checkpoint is not None
+            and not checkpoint_only
+            and not (resumed is not None and resumed.header.get("complete"))
+        ):
+            save(complete=True)
+        total = dict(retired)
+        for g in groups.values():
+            _add_stats(total, g.stats)
+        final_groups = [list(g.names) for g in groups.values()]
+    finally:
+        for h in handles:
+            h.close()
+    wall = wall_before + _time.perf_counter() - wall0
+    total.setdefault("wall_s", {})
+    base = asdict(Stats())
+    for k, v in base.items():
+        total.setdefault(k, v)
+    total["wall_s"] = {**base["wall_s"], **total["wall_s"], "total": wall}
+    total["dof_count"] = model.dof_count
+    total["simulated_s"] = float(t_end - t0)
+    total["groups"] = {
+        "final": final_groups,
+        "merges": merges,
+        "rewinds": rewinds,
+        "workers": n_workers,
+        "worker_busy_s": worker_wall,
+    }
+    e = np.array(rec_e)
+    return SimulationResult(
+        time=np.array(rec_t),
+        positions=np.array(rec_x),
+        rotation_vectors=np.array(rec_r),
+        velocities=np.array(rec_v),
+        energies={
+            "kinetic": e[:, 0],
+            "strain": e[:, 1],
+            "gravity": e[:, 2],
+            "total": e.sum(axis=1),
+        },  # fmt: skip
+        final_state=cur,
+        stats=total,
+    )
