@@ -378,10 +378,11 @@ def test_conveyor_cli_resumes_from_its_checkpoint(conveyor_run, snapshot_dir, ca
 
 def test_conveyor_cli_preview_of_a_run_in_progress(snapshot_dir, tmp_path, capsys):
     # a run interrupted after its first frames: --preview writes the files of those frames
-    # to DIR/preview/ without stepping and leaves the checkpoint as it was
+    # to DIR/preview/ without stepping and leaves the checkpoint as it was (the scene as one
+    # model; the group-by-group run's checkpoint: tests/test_conveyor_groups.py)
     out = tmp_path / "run"
     args = ["run", "conveyor", "--scene", str(SCENE), "--snapshot-dir", str(snapshot_dir),
-            "--t-end", "0.01", "--out", str(out), "--no-progress"]  # fmt: skip
+            "--t-end", "0.01", "--out", str(out), "--no-progress", "--workers", "0"]  # fmt: skip
     assert "no checkpoint" in _error(capsys, [*args, "--preview"])
     from flexparcel.scenarios import conveyor_scene
 
@@ -450,6 +451,12 @@ def test_conveyor_cli_rejects_bad_input_before_running(tmp_path, capsys):
         capsys, ["run", "conveyor", "--consignments", "KPBW,XX", *out]
     )
     assert "given twice" in _error(capsys, ["run", "conveyor", "--consignments", "KP,KP", *out])
+    assert "--workers must be an integer in [0, 64], got -1" in _error(
+        capsys, ["run", "conveyor", "--workers", "-1", *out]
+    )
+    assert "--workers must be an integer in [0, 64], got 65" in _error(
+        capsys, ["bench", "conveyor", "--workers", "65", *out]
+    )
     assert "--content-stiffness must be in [1, 10000] N/mm, got 0" in _error(
         capsys, ["run", "conveyor", "--content-stiffness", "0", *out]
     )

@@ -157,6 +157,7 @@ def _conveyor(
     work: str | Path = "out/bench-conveyor",
     start_speed: float = 0.0,
     content_stiffness_n_per_mm: float | None = None,
+    workers: int = 2,
 ) -> dict:
     """The paper's bulk scene (:func:`~flexparcel.scenarios.conveyor_scene.default_layout`
     on :func:`~flexparcel.scenarios.conveyor_scene.paper_conveyor`, 1.6 m/s, 45 deg) for
@@ -166,7 +167,7 @@ def _conveyor(
     trajectories, ParaView) to ``work/run``, so the benchmarked run is the one people look
     at; the files' time is not in ``wall_s``. ``content_stiffness_n_per_mm``: the
     packaging-content contact (:func:`~flexparcel.cli.conveyor_job.content_law_for`; None:
-    Table 6's)."""
+    Table 6's). ``workers``: as ``run conveyor --workers`` (0: one model)."""
     from flexparcel.cli.conveyor_job import content_law_for, conveyor_job
     from flexparcel.scenarios.conveyor_scene import default_layout
 
@@ -189,7 +190,8 @@ def _conveyor(
     if not resumed:
         ckpt.unlink(missing_ok=True)
     run, summary, files = conveyor_job(snaps, layout, Path(work) / "run", t_end=t_end,
-                                       progress=shown, content_law=law)  # fmt: skip
+                                       progress=shown, content_law=law,
+                                       workers=workers)  # fmt: skip
     st = run.result.stats
     recurdyn_s = RECURDYN_CONVEYOR_WALL_S * t_end / 2.0
     return {
@@ -216,6 +218,8 @@ def _conveyor(
         "newton_iterations_rejected": st["newton_iterations_rejected"],
         "factorizations": st.get("factorizations"),
         "phase_wall_s": {k: v for k, v in st["wall_s"].items() if k != "total"},
+        "workers": workers,
+        "groups": st.get("groups"),
         "simulated_s_per_wall_s": t_end / run.wall_s,
         "wall_s_for_2s_extrapolated": run.wall_s * 2.0 / t_end,
         "recurdyn_wall_s": recurdyn_s,
@@ -236,13 +240,16 @@ def conveyor_scaling(
     t_end: float = 0.01,
     start_speed: float = 1.6,
     progress_factory=None,
+    workers: int = 2,
 ) -> dict:
     """Wall time of :func:`~flexparcel.scenarios.conveyor_scene.run_conveyor` against the
     number of consignments: ``count`` copies of ``snapshot``'s consignment queued on a belt
     long enough for them (:func:`~flexparcel.scenarios.conveyor_scene.throughput_layout`),
     started at ``start_speed`` [m/s], for ``t_end`` [s]. Consignment contact only between
     neighbours that can meet (``pair_reach`` = belt speed * t_end + 5 cm). Returns a table
-    (``rows``) and the least-squares exponent of wall ~ count**p (1 = linear)."""
+    (``rows``) and the least-squares exponent of wall ~ count**p (1 = linear). ``workers``:
+    as ``run conveyor --workers`` (0: one model)."""
+    from flexparcel.cli.conveyor_job import group_settings
     from flexparcel.scenarios.conveyor_scene import run_conveyor, throughput_layout
 
     rows = []
@@ -252,7 +259,7 @@ def conveyor_scaling(
         prog = progress_factory(f"conveyor x{n}") if progress_factory else None
         reach = layout.conveyor.belt_speed * t_end + 0.05
         run = run_conveyor({key: snapshot}, layout, t_end, dt_out=t_end / 5, pair_reach=reach,
-                           progress=prog)  # fmt: skip
+                           progress=prog, groups=group_settings(workers))  # fmt: skip
         st = run.result.stats
         rows.append({
             "count": int(n), "wall_s": run.wall_s, "build_wall_s": run.build_wall_s,
@@ -272,6 +279,7 @@ def conveyor_scaling(
         "element_size_mm": snapshot.build.element_size * 1e3,
         "simulated_s": t_end,
         "start_speed_m_s": start_speed,
+        "workers": workers,
         "rows": rows,
         "wall_exponent": fit(w),
         "per_iteration_exponent": fit(it),
@@ -324,6 +332,7 @@ def _conveyor_scaling_case(
     snapshot_dir: str | Path | None = None,
     work: str | Path = "out/bench-conveyor",
     plot: str | Path | None = None,
+    workers: int = 2,
 ) -> dict:
     """Bench case ``conveyor-scaling``: :func:`conveyor_scaling` on copies of
     ``consignment`` (default the small example), plot written to ``plot``."""
@@ -332,7 +341,7 @@ def _conveyor_scaling_case(
         counts = tuple(c for c in counts if c <= 2) or (1,)
     snaps, assembly_wall = _conveyor_snapshots([consignment], element_size_mm, snapshot_dir,
                                                Path(work))  # fmt: skip
-    table = conveyor_scaling(next(iter(snaps.values())), counts, t_end=t_end)
+    table = conveyor_scaling(next(iter(snaps.values())), counts, t_end=t_end, workers=workers)
     table["assembly_wall_s"] = assembly_wall
     table["wall_s"] = sum(r["wall_s"] for r in table["rows"])
     table["dof_count"] = table["rows"][-1]["dof_count"]

@@ -74,6 +74,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "assembled and cached next to --out)",
     )
     g.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="N",
+        help="conveyor cases: worker processes for the consignments, as in 'run conveyor' "
+        "(default 2; 0: the whole scene as one model)",
+    )
+    g.add_argument(
         "--scaling-counts",
         default="1,2,4,8",
         metavar="N,N,...",
@@ -108,8 +116,12 @@ def run(args: argparse.Namespace) -> int:
         from flexparcel.cli.conveyor_job import content_law_for
 
         content_law_for(args.content_stiffness)  # its range, before any run
+    from flexparcel.cli.conveyor_job import group_settings
+
+    group_settings(args.workers)  # its range, before any run
     work = Path(args.out).parent / "bench-conveyor"
-    common = {"t_end": args.t_end, "snapshot_dir": args.snapshot_dir, "work": work}
+    common = {"t_end": args.t_end, "snapshot_dir": args.snapshot_dir, "work": work,
+              "workers": args.workers}  # fmt: skip
     options = {
         "conveyor": {
             **common,

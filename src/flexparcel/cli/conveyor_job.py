@@ -22,6 +22,7 @@ import numpy as np
 from flexparcel.consignments.build import ConsignmentBuild
 from flexparcel.consignments.snapshot import Snapshot
 from flexparcel.contact.law import ContactLaw
+from flexparcel.scenarios.conveyor_groups import GroupSettings
 from flexparcel.scenarios.conveyor_scene import ConveyorRun, SceneLayout
 
 __all__ = [
@@ -31,9 +32,14 @@ __all__ = [
     "conveyor_job",
     "snapshot_times",
     "parse_consignment_list",
+    "group_settings",
+    "DEFAULT_WORKERS",
 ]
 
 CHECKPOINT_FILE = "checkpoint.npz"
+DEFAULT_WORKERS = 2
+"""``--workers`` default: the consignments on two worker processes (the CI-class machine's
+two cores)."""
 
 
 def content_law_for(stiffness_n_per_mm: float | None) -> ContactLaw | None:
@@ -155,12 +161,16 @@ def conveyor_job(
     animation_frames: int = 60,
     preview: bool = False,
     content_law: ContactLaw | None = None,
+    workers: int = DEFAULT_WORKERS,
 ) -> tuple[ConveyorRun, dict, dict[str, str]]:
     """Run the scene and write the files of the module docstring. Returns the run, the
     ``responses.json`` content and the written paths (name -> path).
 
     ``preview``: no stepping; the files of the frames that ``out/checkpoint.npz`` holds so far
-    (a run going on in another process, or an interrupted one) go to ``out/preview/``."""
+    (a run going on in another process, or an interrupted one) go to ``out/preview/``.
+    ``workers``: integrate consignments that cannot touch as separate models on that many
+    worker processes (:mod:`flexparcel.scenarios.conveyor_groups`); 0: the scene as one
+    model."""
     from flexparcel.cli.consignment_jobs import _write_json
     from flexparcel.cli.progress import ProgressLine
     from flexparcel.io.paraview import write_paraview, write_paraview_boxes
@@ -184,8 +194,8 @@ def conveyor_job(
         print(f"conveyor: resuming from {checkpoint}", file=sys.stderr)
     try:
         run = run_conveyor(snapshots, layout, t_end, dt_out=dt_out, pair_reach=pair_reach,
-                           progress=bar, checkpoint=checkpoint,
-                           checkpoint_only=preview, content_law=content_law)  # fmt: skip
+                           progress=bar, checkpoint=checkpoint, checkpoint_only=preview,
+                           content_law=content_law, groups=group_settings(workers))  # fmt: skip
     finally:
         bar.done()
     if preview:
@@ -198,6 +208,7 @@ def conveyor_job(
         "t_end_s": t_end,
         "dt_out_s": dt_out,
         "pair_reach_m": pair_reach,
+        "workers": workers,
         "content_stiffness_N_per_mm": None if content_law is None else content_law.stiffness * 1e-3,
         "element_size_mm": {k: s.build.element_size * 1e3 for k, s in snapshots.items()},
     }
@@ -247,6 +258,15 @@ def conveyor_job(
     summary["files"] = files
     _write_json(json_path, summary)
     return run, summary, files
+
+
+def group_settings(workers: int) -> GroupSettings | None:
+    """The ``--workers`` option: None (one model) for 0, else that many worker processes
+    (numba 1 thread each) for :func:`~flexparcel.scenarios.conveyor_groups.integrate_by_groups`.
+    Raises ``ValueError`` outside [0, 64]."""
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 0 <= workers <= 64:
+        raise ValueError(f"--workers must be an integer in [0, 64], got {workers!r}")
+    return None if workers == 0 else GroupSettings(workers=workers)
 
 
 def parse_consignment_list(text: str) -> list[str]:

@@ -14,7 +14,8 @@ __all__ = ["register", "run"]
 TESTS = ("swing", "drop-vertical", "drop-horizontal")  # as cli.consignment_jobs.TESTS
 SCENARIOS = (*TESTS, "conveyor")
 _CONVEYOR_ONLY = ("consignments", "belt_speed", "deflector_angle", "scene", "snapshot_dir",
-                  "pair_reach", "start_speed", "preview", "content_stiffness")  # fmt: skip
+                  "pair_reach", "start_speed", "preview", "content_stiffness",
+                  "workers")  # fmt: skip
 _TEST_ONLY = ("consignment", "snapshot", "assignments")
 
 
@@ -128,6 +129,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "faster and lets the film settle deeper on its content",
     )
     g.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="conveyor: integrate consignments that cannot touch as separate models, each "
+        "with its own time steps, on N worker processes, merged when they come close "
+        "(default 2; 0: the whole scene as one model)",
+    )
+    g.add_argument(
         "--preview",
         action="store_true",
         default=None,
@@ -199,8 +209,10 @@ def _run_conveyor(args: argparse.Namespace) -> int:
     import sys
 
     from flexparcel.cli.conveyor_job import (
+        DEFAULT_WORKERS,
         content_law_for,
         conveyor_job,
+        group_settings,
         parse_consignment_list,
         snapshot_for,
     )
@@ -274,6 +286,8 @@ def _run_conveyor(args: argparse.Namespace) -> int:
         layout = default_layout(builds, conveyor, speed=start, **kw)
     check_layout(layout, builds)  # before any (long) assembly
     content_law = content_law_for(args.content_stiffness)
+    workers = DEFAULT_WORKERS if args.workers is None else args.workers
+    group_settings(workers)  # its range, before any assembly
     progress = not args.no_progress
     try:
         snaps, sources = {}, {}
@@ -285,6 +299,7 @@ def _run_conveyor(args: argparse.Namespace) -> int:
         run_, summary, files = conveyor_job(
             snaps, layout, args.out, t_end=t_end, pair_reach=args.pair_reach,
             progress=progress, preview=bool(args.preview), content_law=content_law,
+            workers=workers,
             extra={"snapshots": sources,
                                       "scene_file": None if args.scene is None
                                       else str(args.scene)},
