@@ -14,6 +14,8 @@ block is compared here, column by column, with the central difference
 * :func:`edge_plane_forces` (6 x 6: the two nodes of a shell edge, 3 sampled points);
 * :func:`edge_box_forces` (12 x 12: an edge's two nodes, box translation and spin) and
   :func:`edge_face_forces` (15 x 15: an edge's two nodes and a triangle's three vertices);
+* :func:`edge_edge_forces` (12 x 12: two crossing edges' four nodes, with the change of the
+  closest points' weights; on the side it started and passed through);
 * the stick model of the box and face kernels (stick, slip at mu_d, slip in the STEP5 blend, a
   new contact anchored at the step's start).
 
@@ -48,6 +50,7 @@ import pytest
 
 from flexparcel.consignments.build import default_packaging_content_law
 from flexparcel.contact.bodies import box_contact_forces, edge_box_forces
+from flexparcel.contact.edge_edge import edge_edge_forces
 from flexparcel.contact.edges import edge_plane_forces
 from flexparcel.contact.faces import edge_face_forces, face_contact_forces
 from flexparcel.contact.geometry import (
@@ -783,3 +786,100 @@ def edge_face_errors(case):
 @pytest.mark.parametrize("case", list(EDGE_FACE_CASES))
 def test_edge_face_tangents_match_finite_differences(case):
     edge_face_errors(case)
+
+
+# --------------------------------------------------------------------------------------------------
+# shell edge crossing another edge (edge-to-edge line contact, edge_edge_forces)
+# --------------------------------------------------------------------------------------------------
+
+# edge a along ``_EA`` through the origin, edge b along ``_EB`` through ``_CROSS * n``; both
+# 10 mm, their closest points near the middle of each (s, t in (0.2, 0.8))
+_EA = np.array([1.0, 0.2, 0.1]) / np.linalg.norm([1.0, 0.2, 0.1])
+_EB = np.array([-0.3, 1.0, 0.25]) / np.linalg.norm([-0.3, 1.0, 0.25])
+_NAB = np.cross(_EA, _EB) / np.linalg.norm(np.cross(_EA, _EB))  # from b towards a
+
+
+def _edge_edge_run(law, pos, vel, n0):
+    """Forces on [p0, p1, q0, q1] (12,) and blocks (12, 12) of one candidate pair."""
+    f = np.zeros((4, 6))
+    ek = np.zeros((1, 12, 12))
+    ec = np.zeros((1, 12, 12))
+    dofs = np.zeros((1, 12), dtype=np.int64)
+    nc = edge_edge_forces(
+        np.array([[0, 0]]), np.asarray(n0, float)[None], np.array([[0, 1]]), np.array([[2, 3]]),
+        THICK, law.packed(), ACT, pos, vel, f, ek, ec, dofs, np.ones(4), 1e9, np.zeros(1),
+    )[0]  # fmt: skip
+    if nc:
+        assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 12, 13, 14, 18, 19, 20]
+    return f[:, :3].ravel(), ek[0], ec[0], nc
+
+
+EDGE_EDGE_CASES = {
+    # name: (law, signed distance of a from b along n0 (h - penetration), relative tangential
+    #        velocity of a's closest point [m/s], closing speed [m/s])
+    "crossing-sliding": (CONTENT, THICK - S, (0.02, -0.01), 0.05),
+    "crossing-friction-blend": (BLEND, THICK - S, (1.0e-3, 0.6e-3), 0.05),
+    "rebound": (BLEND, THICK - S, (0.02, 0.0), -0.3),
+    # a came through b within the step: beyond b's line, penetration h + |distance|, pushed
+    # back to the side it started on (STEP damping saturated beyond s_max)
+    "passed-through": (CONTENT, -0.6 * S, (0.02, 0.01), 0.05),
+}  # fmt: skip
+
+
+def edge_edge_errors(case):
+    """(error of the position block, of the velocity block) relative to the blocks' maxima."""
+    law, d, slip, closing = EDGE_EDGE_CASES[case]
+    pos = np.array([-0.004 * _EA, 0.006 * _EA, -0.005 * _EB, 0.005 * _EB])
+    pos[2:] -= d * _NAB  # b moved so that a lies d from it along n0 = _NAB
+    # edge b moves and stretches, edge a slides over it and turns a little: the closest
+    # points' weights and the relative velocity change with the configuration
+    vel = np.zeros((4, 6))
+    vel[2] = [0.01, 0.02, -0.005, 0, 0, 0]
+    vel[3] = [0.015, 0.01, 0.0, 0, 0, 0]
+    s, t = 0.4, 0.5  # closest points' parameters on a and b for this layout
+    vb = (1 - t) * vel[2, :3] + t * vel[3, :3]
+    t1 = _EA
+    t2 = np.cross(_NAB, _EA)
+    va = vb + slip[0] * t1 + slip[1] * t2 - closing * _NAB
+    # a turns (its ends' velocities differ by 2 spin) with its closest point moving at va
+    spin = np.cross(np.array([0.0, 0.0, 0.4]), 0.005 * _EA)
+    vel[0, :3] = va - 2 * s * spin
+    vel[1, :3] = vel[0, :3] + 2 * spin
+    _, ek, ec, nc = _edge_edge_run(law, pos, vel, _NAB)
+    assert nc == 1
+    g = THICK - d
+    if case != "passed-through":
+        vt = np.asarray(slip[0] * t1 + slip[1] * t2)
+        assert _regime(law, g, closing, vt)[0] in ("spring+damping", "rebound")
+    else:
+        assert g > 1.5 * law.packed()[P_S_MAX]  # beyond the STEP ramp's end
+    dk, dc = _central_differences(lambda p, v: _edge_edge_run(law, p, v, _NAB)[0], pos, vel)
+    return _compare(ek, dk, RTOL), _compare(ec, dc, RTOL)
+
+
+@pytest.mark.parametrize("case", list(EDGE_EDGE_CASES))
+def test_edge_edge_tangents_match_finite_differences(case):
+    edge_edge_errors(case)
+
+
+def test_edge_edge_pushes_back_to_the_side_it_started_on():
+    # the same layout seen from either start side: a pair that starts with a above b is
+    # pushed up (+n0) even once a is below b's line, with penetration h + |d|; one that
+    # starts below and lies below by less than h is pushed down
+    pos = np.array([-0.004 * _EA, 0.006 * _EA, -0.005 * _EB, 0.005 * _EB])
+    vel = np.zeros((4, 6))
+    law = replace(CONTENT, damping=0.0, mu_static=0.0, mu_dynamic=0.0)
+    c = law.stiffness
+    for d, n0, push in ((-0.6 * S, _NAB, THICK + 0.6 * S), (-0.6 * S, -_NAB, -(THICK - 0.6 * S))):
+        p = pos.copy()
+        p[2:] -= d * _NAB
+        f, _, _, nc = _edge_edge_run(law, p, vel, n0)
+        assert nc == 1
+        on_a = f[:6].reshape(2, 3).sum(axis=0)
+        on_b = f[6:].reshape(2, 3).sum(axis=0)
+        np.testing.assert_allclose(on_a, ACT * c * push * _NAB, rtol=1e-9)  # linear law
+        np.testing.assert_allclose(on_b, -on_a, rtol=1e-12)
+    # farther than h on the start side: no contact
+    p = pos.copy()
+    p[2:] -= (THICK + 1e-5) * _NAB
+    assert _edge_edge_run(law, p, vel, _NAB)[3] == 0

@@ -383,6 +383,50 @@ def test_packaging_face_pressed_on_a_deflector_tip_is_held_by_the_tip_edge(tip_c
         assert gap.max() < 0.0  # through the tip: nothing holds a face between its nodes
 
 
+@pytest.mark.parametrize("edge_contact", [True, False])
+def test_packaging_edge_across_a_deflector_tip_is_held_edge_to_edge(edge_contact):
+    # A 40 x 40 mm one-quad stiff plate lies flat, 60 mm above the belt, beyond the first
+    # deflector's tip: its near edge runs square to the sheet (its nodes 20 mm either side of
+    # the sheet's mid-plane) 0.5 mm beyond the contact thickness h from the tip's mid-plane
+    # line, and each node is pushed towards the root by F = 5 N (ramped over 2 ms, no gravity;
+    # the paper scene's deflector law, linear c = 611 N/mm). No node comes near the sheet and
+    # the plate's face is 2.5 mm from the tip's nearest stations: only the edge crossing the
+    # tip edge can hold it. One pair (the plate's near edge, the tip segment from 50 to
+    # 75 mm) carries the law once: at rest it carries 4 F, so g = 4 F / c = 0.033 mm and the
+    # edge rests h - g from the tip line. Without edge-to-edge contact it goes through.
+    from flexparcel.scenarios.conveyor import add_deflector_contact
+    from flexparcel.scenarios.conveyor_scene import belt_law
+
+    b = fp.ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    parts = add_conveyor(b, ConveyorScene(belt_speed=0.0))
+    g = parts.deflectors[0]
+    law = belt_law(stick_model=False)
+    h = parts.deflector_contact_thickness(SHEET_T / 2)
+    mid = g.tip - 0.5 * parts.scene.deflector_thickness * g.normal  # the tip's mid-plane line
+    start = mid + (h + 0.5e-3) * g.tangent + np.array([0.0, 0.0, 0.06])
+    pts = np.array([start + u * g.normal + v * g.tangent
+                    for v in (0.0, 0.04) for u in (-0.02, 0.02)])  # fmt: skip
+    mat = fp.ShellMaterial(210e9, 0.3, 7850.0, 2e-3, 1e-5)
+    plate = b.add_shell_mesh(pts, np.array([[0, 1, 3, 2]]), material=mat)
+    if edge_contact:
+        add_deflector_contact(b, parts, plate, law, shell_half_thickness=SHEET_T / 2)
+    else:  # the contacts of add_deflector_contact before edge-to-edge
+        tip = parts.deflector_tips[0]
+        b.add_face_contact(plate, parts.deflector_vertices[0], law, thickness=h)
+        b.add_edge_face_contact(tip, plate, law, thickness=h, samples=5)
+    force = 5.0
+    b.add_force(plate, -force * g.tangent, schedule=fp.Schedule((0.0, 2e-3), (0.0, 1.0)))
+    r = fp.simulate(b.finalize(), 10e-3, dt_out=1e-3)
+    near = plate[:2]
+    gap = (r.positions[-1, near] - mid) @ g.tangent  # the near edge's distance from the tip
+    if edge_contact:
+        s = 4 * force / law.stiffness
+        assert gap.mean() == pytest.approx(h - s, rel=0.01)
+        assert np.ptp(gap) < 5e-6  # square to the tip: no turn
+    else:
+        assert gap.max() < 0.0  # through the tip: no station reaches an edge between them
+
+
 # ------------------------------------------------------------------------------ responses
 
 T = np.round(np.arange(0.0, 0.6 + 1e-9, 0.01), 10)

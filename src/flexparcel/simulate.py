@@ -29,7 +29,7 @@ from flexparcel.io.checkpoint import (
 )
 from flexparcel.model.builder import Model, State
 
-__all__ = ["SimulationResult", "simulate", "state_energies"]
+__all__ = ["SimulationResult", "FrameRecorder", "simulate", "state_energies"]
 
 
 @dataclass
@@ -65,6 +65,57 @@ def state_energies(model: Model, state: State) -> tuple[float, float, float]:
     kin = asm.kinetic_energy(model, state.velocities, state.rotations)
     grav = -float(np.sum(model.mass[:, :3] * model.gravity * (state.positions - model.positions0)))
     return kin, strain, grav
+
+
+class FrameRecorder:
+    """The output frames of a run of ``model``: time, positions, rotation vectors,
+    velocities and energies (:func:`state_energies`) at each recorded state."""
+
+    def __init__(self, model: Model) -> None:
+        self.model = model
+        self._t, self._x, self._r, self._v, self._e = [], [], [], [], []
+
+    def record(self, st: State) -> None:
+        self._t.append(st.time)
+        self._x.append(st.positions.copy())
+        self._r.append(rotation_vectors(st.rotations))
+        self._v.append(st.velocities.copy())
+        self._e.append(state_energies(self.model, st))
+
+    def extend(self, frames: dict[str, np.ndarray]) -> None:
+        """Append the frames of a checkpoint (:meth:`frames`'s layout)."""
+        self._t.extend(frames["time"].tolist())
+        self._x.extend(frames["positions"])
+        self._r.extend(frames["rotation_vectors"])
+        self._v.extend(frames["velocities"])
+        self._e.extend(tuple(e) for e in frames["energies"].tolist())
+
+    def frames(self) -> dict[str, np.ndarray]:
+        """The frames as arrays: ``time`` (k,), ``positions`` (k, n, 3), ``rotation_vectors``
+        (k, n, 3), ``velocities`` (k, n, 6), ``energies`` (k, 3) [J]."""
+        return {
+            "time": np.array(self._t), "positions": np.array(self._x),
+            "rotation_vectors": np.array(self._r), "velocities": np.array(self._v),
+            "energies": np.array(self._e),
+        }  # fmt: skip
+
+    def result(self, final_state: State, stats: dict) -> SimulationResult:
+        f = self.frames()
+        e = f["energies"]
+        return SimulationResult(
+            time=f["time"],
+            positions=f["positions"],
+            rotation_vectors=f["rotation_vectors"],
+            velocities=f["velocities"],
+            energies={
+                "kinetic": e[:, 0],
+                "strain": e[:, 1],
+                "gravity": e[:, 2],
+                "total": e.sum(axis=1),
+            },  # fmt: skip
+            final_state=final_state,
+            stats=stats,
+        )
 
 
 def simulate(
@@ -143,21 +194,10 @@ def simulate(
         | {float(b) for b in model.gravity_schedule.breakpoints()}
     )
     breaks = [b for b in breaks if t0 < b < t_end]
-    rec_t, rec_x, rec_r, rec_v, rec_e = [], [], [], [], []
-
-    def record(st: State) -> None:
-        rec_t.append(st.time)
-        rec_x.append(st.positions.copy())
-        rec_r.append(rotation_vectors(st.rotations))
-        rec_v.append(st.velocities.copy())
-        rec_e.append(state_energies(model, st))
+    rec = FrameRecorder(model)
 
     def save(complete: bool) -> None:
-        frames = {
-            "time": np.array(rec_t), "positions": np.array(rec_x),
-            "rotation_vectors": np.array(rec_r), "velocities": np.array(rec_v),
-            "energies": np.array(rec_e),
-        }  # fmt: skip
+        frames = rec.frames()
         hist = integ.history()
         hist["wall_total"] = np.array(wall_before + _time.perf_counter() - wall0)
         save_checkpoint(
@@ -166,14 +206,9 @@ def simulate(
 
     wall_before = 0.0  # wall time of the run before it was resumed
     if resumed is None:
-        record(s)
+        rec.record(s)
     else:
-        f = resumed.frames
-        rec_t.extend(f["time"].tolist())
-        rec_x.extend(f["positions"])
-        rec_r.extend(f["rotation_vectors"])
-        rec_v.extend(f["velocities"])
-        rec_e.extend(tuple(e) for e in f["energies"].tolist())
+        rec.extend(resumed.frames)
         s = resumed.state
         integ.restore_history(resumed.history)
         wall_before = float(resumed.history.get("wall_total", 0.0))
@@ -188,7 +223,7 @@ def simulate(
             if progress is not None:
                 progress(s.time, t_end)
         s.time = float(t_out)  # remove round-off drift so outputs sit on the grid
-        record(s)
+        rec.record(s)
         if checkpoint is not None and t_out != out_times[-1]:
             if _time.perf_counter() - last_save >= checkpoint_interval_s:
                 save(complete=False)
@@ -200,22 +235,8 @@ def simulate(
     ):
         save(complete=True)
     wall = wall_before + _time.perf_counter() - wall0
-    e = np.array(rec_e)
     st = asdict(integ.stats)
     st["wall_s"]["total"] = wall
     st["dof_count"] = model.dof_count
     st["simulated_s"] = float(t_end - t0)
-    return SimulationResult(
-        time=np.array(rec_t),
-        positions=np.array(rec_x),
-        rotation_vectors=np.array(rec_r),
-        velocities=np.array(rec_v),
-        energies={
-            "kinetic": e[:, 0],
-            "strain": e[:, 1],
-            "gravity": e[:, 2],
-            "total": e.sum(axis=1),
-        },
-        final_state=s,
-        stats=st,
-    )
+    return rec.result(s, st)

@@ -63,6 +63,7 @@ __all__ = [
     "segment_plane",
     "segment_segment",
     "segment_segment_derivs",
+    "segment_segment_param_derivs",
 ]
 
 # Region codes of point_box_contact_derivs: how many local axes are clamped to the inner box.
@@ -841,6 +842,19 @@ def segment_segment_derivs(p0, p1, q0, q1):
     Returns:
         (s, t, dist, n (3,), ddist_dX (12,), dn_dX (3, 12) [1/m]).
     """
+    s, t, dist, n, dd, dn, _, _ = segment_segment_param_derivs(p0, p1, q0, q1)
+    return s, t, dist, n, dd, dn
+
+
+@nb.njit(cache=True)
+def segment_segment_param_derivs(p0, p1, q0, q1):
+    """:func:`segment_segment_derivs` plus the derivatives of the closest points' parameters,
+    ``ds/dX`` and ``dt/dX`` (12,) [1/m] (zero for a parameter held at 0 or 1, and for
+    ``s`` of parallel segments), which move a contact force between a segment's nodes.
+
+    Returns:
+        (s, t, dist, n (3,), ddist_dX (12,), dn_dX (3, 12), ds_dX (12,), dt_dX (12,)).
+    """
     s, t, dist, n = segment_segment(p0, p1, q0, q1)
     _s, _t, parallel = _segment_segment_params(p0, p1, q0, q1)
     dd = np.zeros(12)
@@ -850,8 +864,10 @@ def segment_segment_derivs(p0, p1, q0, q1):
         dd[6 + k] = -(1.0 - t) * n[k]
         dd[9 + k] = -t * n[k]
     dn = np.zeros((3, 12))
+    ds = np.zeros(12)
+    dt = np.zeros(12)
     if dist == 0.0:
-        return s, t, dist, n, dd, dn
+        return s, t, dist, n, dd, dn, ds, dt
     d1 = p1 - p0
     d2 = q1 - q0
     r = dist * n
@@ -879,8 +895,6 @@ def segment_segment_derivs(p0, p1, q0, q1):
         r2[9 + k] = -t * d2[k] + r[k]
     s_free = (0.0 < s < 1.0) and a > 0.0 and not parallel
     t_free = (0.0 < t < 1.0) and e > 0.0
-    ds = np.zeros(12)
-    dt = np.zeros(12)
     if s_free and t_free:
         # [a, -b; b, -e] [ds; dt] = -[R1; R2]
         det = -a * e + b * b
@@ -902,4 +916,4 @@ def segment_segment_derivs(p0, p1, q0, q1):
             for k in range(3):
                 acc -= n[i] * n[k] * jac[k, j]
             dn[i, j] = acc / dist
-    return s, t, dist, n, dd, dn
+    return s, t, dist, n, dd, dn, ds, dt

@@ -38,7 +38,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from flexparcel.contact.bodies import box_contact_forces, edge_box_forces
-from flexparcel.contact.broadphase import point_triangle_candidates
+from flexparcel.contact.broadphase import point_triangle_candidates, segment_segment_candidates
+from flexparcel.contact.edge_edge import edge_edge_forces, edge_edge_sides
 from flexparcel.contact.edges import edge_plane_forces
 from flexparcel.contact.faces import (
     edge_face_forces,
@@ -295,6 +296,7 @@ class GeneralizedAlpha:
         self._coupled_blocks = []
         self._face_cands = []
         self._edge_face_cands = []
+        self._edge_edge_cands = []
         # node pairs that share a shell element (keys a * n + b), for the self-contact filter
         if (model.face_sets or model.edge_face_sets) and model.triangles.size:
             t = model.triangles
@@ -454,6 +456,17 @@ class GeneralizedAlpha:
             )  # fmt: skip
             self._coupled_blocks.append((fk, fcv, dofs))
             info = _merged(info, nc, depth, ratio)
+        for (edges_a, edges_b, thick, law, sched), (pairs, sides) in zip(
+            m.edge_edge_sets, self._edge_edge_cands, strict=True
+        ):
+            ek, ec, dofs = _pair_blocks(pairs.shape[0], 12)
+            nc, depth, ratio = edge_edge_forces(
+                pairs, sides, edges_a, edges_b, thick, m.contact_laws[law], factors[sched],
+                s.positions, s.velocities, fc, ek, ec, dofs, self._node_mass,
+                self.opt.impact_speed, w2,
+            )  # fmt: skip
+            self._coupled_blocks.append((ek, ec, dofs))
+            info = _merged(info, nc, depth, ratio)
         for (edges, tris, thick, samples, law, sched), (pairs, sides) in zip(
             m.edge_face_sets, self._edge_face_cands, strict=True
         ):
@@ -493,7 +506,8 @@ class GeneralizedAlpha:
         m = self.model
         self._face_cands = []
         self._edge_face_cands = []
-        if not (m.face_sets or m.edge_face_sets):
+        self._edge_edge_cands = []
+        if not (m.face_sets or m.edge_face_sets or m.edge_edge_sets):
             return
         vmax = float(np.sqrt((s0.velocities[:, :3] ** 2).sum(axis=1)).max())
         reach = 2.0 * h * (vmax + 9.81 * h) + 1e-9
@@ -507,6 +521,11 @@ class GeneralizedAlpha:
             self._edge_face_cands.append(
                 self._point_face_candidates(points, owners, tris, thick, reach, s0)
             )
+        for edges_a, edges_b, thick, _, _ in m.edge_edge_sets:
+            # pairs within the thickness plus the reach; each keeps the direction it starts in
+            pairs = segment_segment_candidates(edges_a, thick, edges_b, s0.positions, reach)
+            sides = edge_edge_sides(pairs, edges_a, edges_b, s0.positions)
+            self._edge_edge_cands.append((pairs, sides))
 
     def _point_face_candidates(self, points, owners, tris, thick, reach, s0: State):
         """Candidate (point, face) pairs of ``points`` (N, 3) owned by nodes ``owners`` (N, k)

@@ -136,6 +136,9 @@ class Model:
     edge_face_sets: list = field(default_factory=list)
     """Line contact with faces: (edges (E, 2), triangles (M, 3), thickness [m], samples, law
     index, schedule)."""
+    edge_edge_sets: list = field(default_factory=list)
+    """Edge-to-edge line contact: (edges a (Ea, 2), edges b (Eb, 2), thickness [m], law
+    index, schedule) (see :mod:`flexparcel.contact.edge_edge`)."""
     edge_box_sets: list = field(default_factory=list)
     """Line contact with rounded boxes: (edges (E, 2), rigid node, radius [m], samples, law
     index, schedule)."""
@@ -178,7 +181,7 @@ class Model:
         """Whether any contact (points on planes, node-box, line, node-face) is defined."""
         return bool(
             self.cp_node.size or self.bp_node.size or self.edge_sets or self.edge_box_sets
-            or self.face_sets or self.edge_face_sets
+            or self.face_sets or self.edge_face_sets or self.edge_edge_sets
         )  # fmt: skip
 
     def initial_state(self) -> State:
@@ -260,6 +263,7 @@ class ModelBuilder:
     _edge_contacts: list = field(default_factory=list, repr=False)
     _edge_body_contacts: list = field(default_factory=list, repr=False)
     _edge_face_contacts: list = field(default_factory=list, repr=False)
+    _edge_edge_contacts: list = field(default_factory=list, repr=False)
     _refs: list = field(default_factory=list, repr=False)
     _node_count: int = 0
 
@@ -553,6 +557,27 @@ class ModelBuilder:
         self._edge_face_contacts.append(
             (edges, tris, h, _sample_count(name, samples), law, _schedule(schedule))
         )
+
+    def add_edge_edge_contact(
+        self,
+        node_ids,
+        other_node_ids,
+        law,
+        *,
+        thickness: float,
+        schedule: Schedule | None = None,
+    ) -> None:
+        """Edge-to-edge line contact of the shell (or rigid mesh) edges whose two nodes are both
+        in ``node_ids`` against those whose two nodes are both in ``other_node_ids``, e.g. a
+        deflector's tip edge against a packaging's element edges, which cross it between any
+        stations of :meth:`add_edge_face_contact`. ``thickness`` [m]: the sum of the two
+        edges' radii (:mod:`flexparcel.contact.edge_edge`). Edges sharing a node never touch."""
+        name = "add_edge_edge_contact"
+        _require_law(name, law)
+        h = _positive_thickness(name, thickness)
+        edges_a = self._shell_edges(name, node_ids)
+        edges_b = self._shell_edges(name, other_node_ids)
+        self._edge_edge_contacts.append((edges_a, edges_b, h, law, _schedule(schedule)))
 
     def _face_triangles(self, name: str, face_node_ids) -> np.ndarray:
         """Triangles (M, 3) of the shell faces (quads split once) and solid boundary faces
@@ -871,6 +896,7 @@ class ModelBuilder:
         edge_sets = indexed(self._edge_contacts)
         edge_box_sets = indexed(self._edge_body_contacts)
         edge_face_sets = indexed(self._edge_face_contacts)
+        edge_edge_sets = indexed(self._edge_edge_contacts)
         face_sets = indexed(self._face_contacts)
         box_half = np.zeros((n, 3))
         box_rad = np.zeros(n)
@@ -940,6 +966,7 @@ class ModelBuilder:
             box_radius_by_node=box_rad,
             face_sets=face_sets,
             edge_face_sets=edge_face_sets,
+            edge_edge_sets=edge_edge_sets,
             edge_sets=edge_sets,
             edge_box_sets=edge_box_sets,
             solid_groups=solid_groups,

@@ -23,7 +23,7 @@ Modelling choices (they differ from the paper, which uses a shell belt on driven
   behind the deflector (measured in the paper's scene: KP's kraft rim went through the
   second deflector at 1.45 s and hooked KP onto it); through a 2 mm sheet it takes 670 N.
   A face draped round the tip passes between its nodes, so the tip edge also meets shell
-  faces by line contact (:func:`add_deflector_contact`).
+  faces by line contact, and shell element edges edge to edge (:func:`add_deflector_contact`).
   Only *shell nodes* can touch a triangle mesh in flexparcel
   (``add_face_contact``); a rigid box content cannot. For a rigid box use a plane through
   :attr:`DeflectorGeometry.point` with :attr:`DeflectorGeometry.normal`, which is unbounded
@@ -382,11 +382,13 @@ def add_deflector_contact(
     against each deflector's mid-plane mesh (:meth:`ConveyorParts.deflector_contact_thickness`),
     and each deflector's tip edge against its faces (line contact, the same thickness: the
     sheet's end rounded by half its thickness; stations every :data:`TIP_STATION_SPACING`,
-    each segment of :data:`TIP_SEGMENT_LENGTH` carrying the law once). Node-to-face contact
-    alone lets a face pressed on the tip pass through it between its nodes. Not covered: an
-    element edge of the shell crossing the tip edge (edge-to-edge contact). In the paper
-    scene's 2 s runs, packaging edges wrapped round the tip came up to 1.2 mm inside the
-    contact thickness, with or without the tip's line contact."""
+    each segment of :data:`TIP_SEGMENT_LENGTH` carrying the law once), and the tip edge's
+    segments against the shell's element edges (edge-to-edge, the same thickness, the law
+    once per crossing pair, regularised friction: :mod:`flexparcel.contact.edge_edge`).
+    Node-to-face contact alone lets a face pressed on the tip pass through it between its
+    nodes, and the tip's stations let an element edge wrapped round the tip pass between
+    them (in the paper scene's 2 s runs of sessions 15 and 16, packaging edges came up to
+    1.2 mm inside the contact thickness there)."""
     thick = parts.deflector_contact_thickness(shell_half_thickness)
     for verts, tip, g in zip(
         parts.deflector_vertices, parts.deflector_tips, parts.deflectors, strict=True
@@ -395,3 +397,4 @@ def add_deflector_contact(
         segment = g.height / (len(tip) - 1)
         samples = max(1, math.ceil(segment / TIP_STATION_SPACING - 1e-9))
         builder.add_edge_face_contact(tip, node_ids, law, thickness=thick, samples=samples)
+        builder.add_edge_edge_contact(tip, node_ids, law, thickness=thick)

@@ -49,7 +49,6 @@ from pathlib import Path
 
 import numpy as np
 
-from flexparcel.elements.rotations import rotation_vectors
 from flexparcel.integrate.dynamic import GeneralizedAlpha, IntegratorOptions, Stats
 from flexparcel.io.checkpoint import (
     CHECKPOINT_FORMAT,
@@ -62,7 +61,7 @@ from flexparcel.io.checkpoint import (
     state_fingerprint,
 )
 from flexparcel.model.builder import State
-from flexparcel.simulate import SimulationResult, state_energies
+from flexparcel.simulate import FrameRecorder, SimulationResult
 
 __all__ = ["GroupSettings", "integrate_by_groups", "box_gap"]
 
@@ -372,6 +371,7 @@ class _GroupInfo:
     worker: int
     nodes: np.ndarray  # full-scene node ids of the members' consignments
     costs: list = field(default_factory=list)  # wall per frame [s]
+    estimate: float | None = None  # expected wall per frame before the first one [s]
     stats: dict = field(default_factory=dict)
 
 
@@ -468,15 +468,21 @@ def integrate_by_groups(
     rewinds = 0
     worker_wall = [0.0] * n_workers
     next_key = 0
-    rec_t, rec_x, rec_r, rec_v, rec_e = [], [], [], [], []
+    rec = FrameRecorder(model)
     cur = cm.state0.copy()
 
     def nodes_of(members) -> np.ndarray:
         return np.concatenate([full_ids[n] for n in members])
 
     def load(worker: int) -> float:
-        return sum(np.mean(g.costs[-5:]) if g.costs else g.nodes.size for g in groups.values()
-                   if g.worker == worker)  # fmt: skip
+        """Recent wall per frame of a worker's groups [s]; node counts before any frame."""
+
+        def cost(g: _GroupInfo) -> float:
+            if g.costs:
+                return float(np.mean(g.costs[-5:]))
+            return g.nodes.size if g.estimate is None else g.estimate
+
+        return sum(cost(g) for g in groups.values() if g.worker == worker)
 
     def create(members, exports, worker=None) -> int:
         nonlocal next_key
@@ -509,13 +515,6 @@ def integrate_by_groups(
         cur.positions[ids] = fr["positions"]
         cur.rotations[ids] = fr["rotations"]
         cur.velocities[ids] = fr["velocities"]
-
-    def record() -> None:
-        rec_t.append(cur.time)
-        rec_x.append(cur.positions.copy())
-        rec_r.append(rotation_vectors(cur.rotations))
-        rec_v.append(cur.velocities.copy())
-        rec_e.append(state_energies(model, cur))
 
     def close_pairs(margin: bool):
         """Pairs of group keys that must be one model (margin: predicted for the next
@@ -565,9 +564,12 @@ def integrate_by_groups(
         made = []
         for comp in components(pairs):
             members = tuple(n for n in names if any(n in groups[k].names for k in comp))
+            # the members' recent cost: a merged group is dealt by it, not by its size
+            cost = sum(float(np.mean(groups[k].costs[-5:])) for k in comp if groups[k].costs)
             exports = [retire(k, how) for k in comp]
             merges.append({"time": float(exports[0]["time"]), "members": list(members)})
             made.append(create(members, exports))
+            groups[made[-1]].estimate = cost
         return made
 
     def rebalance() -> None:
@@ -597,17 +599,12 @@ def integrate_by_groups(
 
     try:
         if resumed is None:
-            record()
+            rec.record(cur)
             for n in names:
                 create((n,), None)
             merge(close_pairs(margin=True), "export")
         else:
-            f = resumed.frames
-            rec_t.extend(f["time"].tolist())
-            rec_x.extend(f["positions"])
-            rec_r.extend(f["rotation_vectors"])
-            rec_v.extend(f["velocities"])
-            rec_e.extend(tuple(e) for e in f["energies"].tolist())
+            rec.extend(resumed.frames)
             cur = resumed.state.copy()
             info = json.loads(str(resumed.history["groups_json"]))
             retired = info["retired"]
@@ -633,20 +630,8 @@ def integrate_by_groups(
                 h = handles[groups[k].worker]
                 h.send("export", k)
                 hist.update(_export_arrays(f"g{i}_", h.recv()))
-            frames = {
-                "time": np.array(rec_t), "positions": np.array(rec_x),
-                "rotation_vectors": np.array(rec_r), "velocities": np.array(rec_v),
-                "energies": np.array(rec_e),
-            }  # fmt: skip
-            save_checkpoint(
-                checkpoint,
-                RunCheckpoint(
-                    {**header, "version": CHECKPOINT_VERSION, "complete": complete},
-                    frames,
-                    cur,
-                    hist,
-                ),  # fmt: skip
-            )
+            head = {**header, "version": CHECKPOINT_VERSION, "complete": complete}
+            save_checkpoint(checkpoint, RunCheckpoint(head, rec.frames(), cur, hist))
 
         last_save = _time.perf_counter()
         for i_frame, t_out in enumerate(out_times):
@@ -669,7 +654,7 @@ def integrate_by_groups(
                     rewinds += 1
                     todo = merge(missed, "rewind")  # merged at the frame before
             cur.time = float(t_out)
-            record()
+            rec.record(cur)
             if progress is not None:
                 progress(cur.time, t_end)
             merge(close_pairs(margin=True), "export")
@@ -689,6 +674,14 @@ def integrate_by_groups(
         for g in groups.values():
             _add_stats(total, g.stats)
         final_groups = [list(g.names) for g in groups.values()]
+        # each final group's own statistics (since it was formed; its wall is its stepping)
+        per_group = [
+            {"members": list(g.names), "steps": int(g.stats["steps"]),
+             "newton_iterations": int(g.stats["newton_iterations"]),
+             "rejected_steps": int(g.stats["rejected_steps"]),
+             "wall_s": float(sum(g.costs))}
+            for g in groups.values()
+        ]  # fmt: skip
     finally:
         for h in handles:
             h.close()
@@ -702,23 +695,10 @@ def integrate_by_groups(
     total["simulated_s"] = float(t_end - t0)
     total["groups"] = {
         "final": final_groups,
+        "per_group": per_group,
         "merges": merges,
         "rewinds": rewinds,
         "workers": n_workers,
         "worker_busy_s": worker_wall,
     }
-    e = np.array(rec_e)
-    return SimulationResult(
-        time=np.array(rec_t),
-        positions=np.array(rec_x),
-        rotation_vectors=np.array(rec_r),
-        velocities=np.array(rec_v),
-        energies={
-            "kinetic": e[:, 0],
-            "strain": e[:, 1],
-            "gravity": e[:, 2],
-            "total": e.sum(axis=1),
-        },  # fmt: skip
-        final_state=cur,
-        stats=total,
-    )
+    return rec.result(cur, total)

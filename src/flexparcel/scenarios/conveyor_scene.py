@@ -15,8 +15,8 @@ Contacts added (SI units, laws of :mod:`flexparcel.contact.law`):
   (:mod:`flexparcel.scenarios.friction_pairs`);
 * packaging shell nodes vs each deflector's mid-plane mesh (thickness: half the packaging
   thickness plus half the sheet's, so the nodes meet the upstream face), and each deflector's
-  tip edge vs the packaging's faces (line contact, the same thickness, see
-  :func:`~flexparcel.scenarios.conveyor.add_deflector_contact`): the same normal law,
+  tip edge vs the packaging's faces (line contact) and element edges (edge to edge), the same
+  thickness, see :func:`~flexparcel.scenarios.conveyor.add_deflector_contact`: the same normal law,
   friction of the surface on X6Cr17 steel;
 * packaging vs packaging of two different consignments, both ways (the nodes of each against
   the faces of the other; thickness: the mean of the two half thicknesses): the paper's
@@ -31,10 +31,8 @@ Contacts added (SI units, laws of :mod:`flexparcel.contact.law`):
 
 What is not modelled: a content touching a deflector or another consignment directly (only
 shell nodes can touch triangle meshes; the content is inside its packaging, which touches
-first); the deflector's top and bottom edges against packaging faces (only its tip edge,
-which consignments pass round, has line contact); packaging element edges against the tip
-edge (edge-to-edge): a 25 mm element edge wrapped round the tip chords through its rounded
-end (up to 1.1 mm inside the contact thickness in the 2 s run of session 16).
+first); the deflector's top and bottom edges against packaging faces and edges (only its
+tip edge, which consignments pass round, has line contact, with faces and edge to edge).
 
 Footprints (overlap checks, the default layout): the flat packaging rectangle of the
 consignment's build, ``flat_size`` plus KP/BW's glued strip on the +x side, in the

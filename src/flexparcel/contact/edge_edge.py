@@ -1,0 +1,151 @@
+"""Edge-to-edge line contact: a shell element edge crossing another edge, e.g. a packaging's
+25 mm element edge wrapped round a deflector's tip edge, which passes between any stations of
+node-to-face or edge-to-face contact.
+
+Each candidate pair of segments ``a = p0-p1`` and ``b = q0-q1`` meets at the closest points
+``x_p = p0 + s (p1 - p0)``, ``x_q = q0 + t (q1 - q0)``
+(:func:`~flexparcel.contact.geometry.segment_segment_param_derivs`), ``dist = |x_p - x_q|``,
+``n = (x_p - x_q) / dist``. Like a node on a thin shell face, a segment can be on either side of
+the other, so each pair keeps the direction ``n0`` it had at the start of the step (found by the
+broad phase, :func:`edge_edge_sides`): with ``sigma = sign(n . n0)``,
+
+    penetration  g = h - sigma dist       (h: the contact thickness, the two radii),
+    push         m = sigma n              (continuous where the segments pass through each other),
+    v_rel = v(x_p) - v(x_q),  g' = -m . v_rel,
+    f = F_N(g, g') m + F_T(v_rel - (m . v_rel) m)   on x_p, and -f on x_q,
+
+with the law of :mod:`flexparcel.contact.law` (regularised friction, eq. 8: no stick model for
+these pairs). The force goes to the nodes by the closest points' weights, ``(1 - s) f``,
+``s f`` to p0, p1 and ``-(1 - t) f``, ``-t f`` to q0, q1; its derivative includes the change of
+those weights (``ds/dX``, ``dt/dX``), so the blocks are the exact derivatives of the force the
+kernel returns (checked against finite differences in ``tests/test_contact_tangents.py``).
+The closest points are Ericson's (*Real-Time Collision Detection*, 2005, section 5.1.9); the
+normal law is the paper's (eqs. 1-10) on the gap between the two segments' capsules.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from flexparcel.contact.geometry import segment_segment, segment_segment_param_derivs
+from flexparcel.contact.law import P_MAX_PEN, friction_force_packed, normal_force_packed
+
+__all__ = ["edge_edge_sides", "edge_edge_forces"]
+
+
+@nb.njit(cache=True)
+def edge_edge_sides(pairs, edges_a, edges_b, pos):
+    """Start directions ``n0`` (K, 3) of candidate pairs (K, 2) ``[edge of a, edge of b]``:
+    the unit vector from b's closest point towards a's (:func:`segment_segment`)."""
+    out = np.empty((pairs.shape[0], 3))
+    for k in range(pairs.shape[0]):
+        ea = edges_a[pairs[k, 0]]
+        eb = edges_b[pairs[k, 1]]
+        _, _, _, n = segment_segment(pos[ea[0]], pos[ea[1]], pos[eb[0]], pos[eb[1]])
+        out[k] = n
+    return out
+
+
+@nb.njit(cache=True)
+def _edge_pair(x, v, n0, thickness, law, scale):
+    """One pair: nodes ``x``, ``v`` (4, 3) = [p0, p1, q0, q1]. Returns (g, node forces (4, 3),
+    d forces / d x (12, 12), d forces / d v (12, 12), dF_N/dg, normal speed m . v_rel);
+    g <= 0: no contact (zeros)."""
+    fk = np.zeros((12, 12))
+    fc = np.zeros((12, 12))
+    fnode = np.zeros((4, 3))
+    s, t, dist, n, dd, dn, ds, dt = segment_segment_param_derivs(x[0], x[1], x[2], x[3])
+    sigma = 1.0 if n[0] * n0[0] + n[1] * n0[1] + n[2] * n0[2] >= 0.0 else -1.0
+    g = thickness - sigma * dist
+    if g <= 0.0:
+        return g, fnode, fk, fc, 0.0, 0.0
+    m = sigma * n
+    dm = sigma * dn  # (3, 12)
+    dg = -sigma * dd  # (12,)
+    w = np.array([1.0 - s, s, -(1.0 - t), -t])  # force on node i = w_i f
+    dw = np.zeros((4, 12))
+    for j in range(12):
+        dw[0, j] = -ds[j]
+        dw[1, j] = ds[j]
+        dw[2, j] = dt[j]
+        dw[3, j] = -dt[j]
+    vrel = w[0] * v[0] + w[1] * v[1] + w[2] * v[2] + w[3] * v[3]
+    vn = m[0] * vrel[0] + m[1] * vrel[1] + m[2] * vrel[2]
+    vt = vrel - vn * m
+    fn, dfn_dg, dfn_dgd = normal_force_packed(g, -vn, law)
+    ft, dft_dvt, dft_dfn = friction_force_packed(vt, fn, law)
+    f = scale * (fn * m + ft)
+    gvec = m + dft_dfn
+    # v_rel moves with the closest points: d v_rel / dX = sum_i v_i dw_i / dX
+    dvrel_x = np.zeros((3, 12))
+    for i in range(4):
+        for a in range(3):
+            for j in range(12):
+                dvrel_x[a, j] += v[i, a] * dw[i, j]
+    dvn_x = vrel @ dm + m @ dvrel_x
+    dvt_x = dvrel_x - np.outer(m, dvn_x) - vn * dm
+    dfx = scale * (np.outer(gvec, dfn_dg * dg - dfn_dgd * dvn_x) + fn * dm + dft_dvt @ dvt_x)
+    proj = np.eye(3) - np.outer(m, m)
+    dvrel_v = np.zeros((3, 12))
+    for i in range(4):
+        for a in range(3):
+            dvrel_v[a, 3 * i + a] = w[i]
+    dvn_v = m @ dvrel_v
+    dfv = scale * (-dfn_dgd * np.outer(gvec, dvn_v) + dft_dvt @ proj @ dvrel_v)
+    for i in range(4):
+        for a in range(3):
+            fnode[i, a] = w[i] * f[a]
+            for j in range(12):
+                fk[3 * i + a, j] = w[i] * dfx[a, j] + f[a] * dw[i, j]
+                fc[3 * i + a, j] = w[i] * dfv[a, j]
+    return g, fnode, fk, fc, dfn_dg, vn
+
+
+@nb.njit(cache=True)
+def edge_edge_forces(
+    pairs, sides, edges_a, edges_b, thickness, law, act, pos, vel, out_f, out_k, out_c,
+    out_dofs, mass, v_impact, out_w2,
+):  # fmt: skip
+    """Edge-to-edge contact of the candidate pairs (K, 2) ``[edge of a, edge of b]`` with
+    start directions ``sides`` (K, 3) (:func:`edge_edge_sides`); the law's force scaled by the
+    schedule factor ``act``. Forces go into ``out_f`` (n, 6); blocks (K, 12, 12) of
+    d[f_p0, f_p1, f_q0, f_q1] / d[x_p0, x_p1, x_q0, x_q1] (``out_k``) and / d[v...]
+    (``out_c``), DOF numbers (K, 12) (-1 if not in contact). Returns (pairs in contact,
+    deepest penetration [m], worst penetration / max)."""
+    out_dofs[:, :] = -1
+    if act == 0.0:
+        return 0, 0.0, 0.0
+    n_contact = 0
+    deepest = 0.0
+    worst = 0.0
+    x = np.empty((4, 3))
+    v = np.empty((4, 3))
+    nodes = np.empty(4, np.int64)
+    for k in range(pairs.shape[0]):
+        nodes[0] = edges_a[pairs[k, 0], 0]
+        nodes[1] = edges_a[pairs[k, 0], 1]
+        nodes[2] = edges_b[pairs[k, 1], 0]
+        nodes[3] = edges_b[pairs[k, 1], 1]
+        for i in range(4):
+            x[i] = pos[nodes[i]]
+            v[i] = vel[nodes[i], :3]
+        g, fnode, fk, fc, dfn_dg, vn = _edge_pair(x, v, sides[k], thickness, law, act)
+        if g <= 0.0:
+            continue
+        n_contact += 1
+        deepest = max(deepest, g)
+        worst = max(worst, g / law[P_MAX_PEN])
+        # the lighter segment rings fastest (a rigid or fixed one has no node mass here)
+        ma = 0.5 * (mass[nodes[0]] + mass[nodes[1]])
+        mb = 0.5 * (mass[nodes[2]] + mass[nodes[3]])
+        mw = min(ma, mb) if ma > 0.0 and mb > 0.0 else max(ma, mb)
+        if abs(vn) > v_impact and mw > 0.0:
+            out_w2[0] = max(out_w2[0], act * dfn_dg / mw)
+        for i in range(4):
+            for a in range(3):
+                out_f[nodes[i], a] += fnode[i, a]
+                out_dofs[k, 3 * i + a] = 6 * nodes[i] + a
+        out_k[k] = fk
+        out_c[k] = fc
+    return n_contact, deepest, worst
