@@ -49,6 +49,7 @@ def test_box_gap_is_the_distance_between_boxes():
         ({"workers": 0}, r"GroupSettings.workers must be an integer >= 1, got 0"),
         ({"threads_per_worker": 1.5}, r"threads_per_worker must be an integer >= 1"),
         ({"merge_slack": -1e-3}, r"merge_slack must be >= 0 m"),
+        ({"lookahead": float("nan")}, r"lookahead must be >= 0, got nan"),
         ({"rebalance_frames": 0}, r"rebalance_frames must be an integer >= 1"),
     ],
 )
@@ -157,29 +158,53 @@ def test_the_worker_count_does_not_change_the_frames(apart):
     assert two.responses.keys() == local.responses.keys()
 
 
-def test_a_trailing_copy_is_merged_before_it_can_touch(snap):
-    # c1 arrives at belt speed 50 mm behind c0, which starts at rest on the running belt:
-    # they close at about 1.5 m/s; the groups are merged at the frame where the gap falls
-    # below reach + 2 dt_out (relative speed) + slack, before any contact is possible (no
-    # rewind), and the merged model carries on where they were
+@pytest.fixture(scope="module")
+def closing(snap):
+    """c1 arrives at belt speed 50 mm behind c0, which starts at rest on the running belt
+    (they close at about 1.5 m/s and meet after 33 ms), 40 ms by groups: with the default lookahead, and with
+    none (merged only once within reach)."""
     base = throughput_layout(snap.build, 2)
     lead, trail = base.placements
     layout = SceneLayout(base.conveyor, (lead, replace(trail, speed=1.6)))
-    run = run_conveyor({"c": snap}, layout, 0.03, dt_out=0.005, groups=GroupSettings(workers=1))
+    runs = {}
+    for key, kw in (("ahead", {}), ("late", {"lookahead": 0.0, "merge_slack": 0.0})):
+        runs[key] = run_conveyor({"c": snap}, layout, 0.04, dt_out=0.005,
+                                 groups=GroupSettings(workers=1, **kw))  # fmt: skip
+    return runs
+
+
+def test_a_trailing_copy_is_merged_before_it_can_touch(closing):
+    # the groups are merged at the frame where the gap falls below reach + 2 dt_out
+    # (relative speed) + slack, before any contact is possible (no rewind), and the merged
+    # model carries on where they were
+    run = closing["ahead"]
     g = run.result.stats["groups"]
     assert g["rewinds"] == 0 and g["final"] == [["c0", "c1"]]
     (m,) = g["merges"]
-    assert m["members"] == ["c0", "c1"] and 0.0 < m["time"] < 0.03
+    assert m["members"] == ["c0", "c1"] and 0.0 < m["time"] < 0.033
     cm = run.conveyor_model
-    k = int(round(m["time"] / 0.005))
-    x = run.result.positions[k]
-    gap = box_gap(*(f(x[cm.consignments[n].node_ids], axis=0) for n in ("c0",) for f in
-                    (np.min, np.max)), *(f(x[cm.consignments[n].node_ids], axis=0)
-                    for n in ("c1",) for f in (np.min, np.max)))  # fmt: skip
+    x = run.result.positions[int(round(m["time"] / 0.005))]
+    a, b = (x[cm.consignments[n].node_ids] for n in ("c0", "c1"))
+    gap = box_gap(a.min(axis=0), a.max(axis=0), b.min(axis=0), b.max(axis=0))
     assert gap > 2 * cm.consignments["c0"].contact_radius  # still apart when merged
     c = _centroids(run)
     assert c["c1"][-1, 0] - c["c1"][0, 0] > 0.03  # the trailing copy kept going
     assert np.all(np.isfinite(run.result.positions))
+
+
+def test_a_missed_merge_rewinds_the_frame_and_does_it_again_together(closing):
+    # without lookahead and slack the groups meet within reach at a frame: that frame is
+    # integrated again from the frame before, merged, and the run goes on as one group
+    late, ahead = closing["late"], closing["ahead"]
+    g = late.result.stats["groups"]
+    assert g["rewinds"] == 1 and g["final"] == [["c0", "c1"]]
+    (m,) = g["merges"]
+    assert m["time"] > ahead.result.stats["groups"]["merges"][0]["time"]  # merged later
+    assert np.all(np.isfinite(late.result.positions))
+    # both merged before the packagings met, so they push each other alike
+    c_late, c_ahead = _centroids(late), _centroids(ahead)
+    for k in c_late:
+        assert np.abs(c_late[k][-1] - c_ahead[k][-1]).max() < 1e-3, k
 
 
 def test_grouped_checkpoint_resumes_and_refuses_a_one_model_one(snap, tmp_path):

@@ -17,9 +17,10 @@ How (a co-simulation with exact coupling, synchronised at every output frame):
   unless it starts within merge distance of another.
 * All groups advance to the next output frame. At each frame, for every two groups whose
   consignments have contact in the full scene, the gap between their node bounding boxes
-  is compared with ``reach + 2 dt_out (|u_A - u_B| + s_A + s_B) + merge_slack`` (u: mean
-  node velocity of a group, s: the largest node speed about it; reach: the two packaging
-  contact radii, more than their face contact thickness). Groups within it are merged
+  is compared with ``reach + lookahead dt_out (|u_A - u_B| + s_A + s_B) + merge_slack``
+  (lookahead 2 by default; u: mean node velocity of a group, s: the largest node speed
+  about it; reach: the two packaging contact radii, more than their face contact
+  thickness). Groups within it are merged
   before the next frame: the merged model takes the members' states and integrator
   histories (algorithmic accelerations, stick springs and anchors, matched by node and
   contact), so no contact between them can open before they are one model.
@@ -75,12 +76,16 @@ class GroupSettings:
             another: the groups still take their own steps).
         threads_per_worker: numba threads of each worker (>= 1).
         merge_slack: extra gap [m] >= 0 below which two groups are merged.
+        lookahead: output intervals >= 0 of approach at the frame's relative speed bound
+            that the merge gap allows for (0: merge only within ``merge_slack``, and rewind
+            whatever comes within reach).
         rebalance_frames: frames between load-balancing checks (>= 1).
     """
 
     workers: int = 2
     threads_per_worker: int = 1
     merge_slack: float = 0.005
+    lookahead: float = 2.0
     rebalance_frames: int = 10
 
     def __post_init__(self) -> None:
@@ -88,9 +93,10 @@ class GroupSettings:
             v = getattr(self, key)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ValueError(f"GroupSettings.{key} must be an integer >= 1, got {v!r}")
-        s = float(self.merge_slack)
-        if not (np.isfinite(s) and s >= 0.0):
-            raise ValueError(f"GroupSettings.merge_slack must be >= 0 m, got {self.merge_slack!r}")
+        for key, unit in (("merge_slack", " m"), ("lookahead", "")):
+            v = getattr(self, key)
+            if not (isinstance(v, int | float) and np.isfinite(v) and v >= 0.0):
+                raise ValueError(f"GroupSettings.{key} must be >= 0{unit}, got {v!r}")
 
 
 def box_gap(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray) -> float:
@@ -539,7 +545,7 @@ def integrate_by_groups(
                 lim = reach
                 if margin:
                     rel = float(np.linalg.norm(ua - ub)) + sa + sb
-                    lim += 2.0 * dt_out * rel + settings.merge_slack
+                    lim += settings.lookahead * dt_out * rel + settings.merge_slack
                 if box_gap(la, ha, lb, hb) < lim:
                     out.append((a, b))
         return out
