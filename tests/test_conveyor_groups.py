@@ -62,7 +62,7 @@ def _setup(snap, layout):
     cm = build_conveyor_model({"c": snap}, layout)
     ids = {k: c.node_ids for k, c in cm.consignments.items()}
     return cm, {"snapshots": {"c": snap}, "layout": layout, "build": {},
-                "options": conveyor_options(), "full_ids": ids}  # fmt: skip
+                "options": conveyor_options(), "full_ids": ids, "state0": cm.state0}  # fmt: skip
 
 
 def test_a_group_rebuilt_from_its_export_continues_bit_for_bit(snap):
@@ -161,8 +161,8 @@ def test_the_worker_count_does_not_change_the_frames(apart):
 @pytest.fixture(scope="module")
 def closing(snap):
     """c1 arrives at belt speed 50 mm behind c0, which starts at rest on the running belt
-    (they close at about 1.5 m/s and meet after 33 ms), 40 ms by groups: with the default lookahead, and with
-    none (merged only once within reach)."""
+    (they close at about 1.5 m/s and meet after 33 ms), 40 ms by groups: with the default
+    lookahead, and with none (merged only once within reach)."""
     base = throughput_layout(snap.build, 2)
     lead, trail = base.placements
     layout = SceneLayout(base.conveyor, (lead, replace(trail, speed=1.6)))
@@ -234,3 +234,24 @@ def test_grouped_checkpoint_resumes_and_refuses_a_one_model_one(snap, tmp_path):
     assert again.result.stats["steps"] == full.result.stats["steps"]
     with pytest.raises(CheckpointError, match=r"mode = 'groups', this run has mode = 'one-model'"):
         run_conveyor({"c": snap}, layout, 0.01, dt_out=0.002, checkpoint=ck)
+
+
+def test_groups_start_from_the_scenes_given_state(snap):
+    # a scene restarted from a state of its own (here c0 pushed sideways at 0.5 m/s): each
+    # group takes its members' part of that state, not the placement's state at rest
+    from dataclasses import replace as dc_replace
+
+    from flexparcel.scenarios.conveyor_groups import integrate_by_groups
+
+    cm = build_conveyor_model({"c": snap}, throughput_layout(snap.build, 2, speed=1.6))
+    s0 = cm.state0.copy()
+    ids = cm.consignments["c0"].node_ids
+    s0.velocities[ids, 1] = 0.5
+    cm = dc_replace(cm, state0=s0)
+    res = integrate_by_groups(cm, {"c": snap}, 0.004, dt_out=0.002, options=conveyor_options(),
+                              build_kwargs={}, settings=GroupSettings(workers=1))  # fmt: skip
+    np.testing.assert_array_equal(res.positions[0], s0.positions)
+    y = res.positions[:, ids, 1].mean(axis=1)
+    assert y[-1] - y[0] == pytest.approx(0.5 * 0.004, rel=0.05)  # sideways at 0.5 m/s
+    other = res.positions[:, cm.consignments["c1"].node_ids, 1].mean(axis=1)
+    assert abs(other[-1] - other[0]) < 1e-5

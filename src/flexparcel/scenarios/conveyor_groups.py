@@ -155,8 +155,11 @@ class _Group:
         self.wall = 0.0  # wall time of the last advance [s]
         sched = list(m.schedules) + [m.gravity_schedule]
         self._breaks = sorted({float(b) for s in sched for b in s.breakpoints()})
-        if exports is None:
-            self.state = cm.state0.copy()
+        if exports is None:  # the scene's initial state, at rest or where the caller put it
+            s0 = setup["state0"]
+            f = self.full
+            self.state = State(s0.time, s0.positions[f].copy(), s0.rotations[f].copy(),
+                               s0.velocities[f].copy(), s0.accelerations[f].copy())  # fmt: skip
             self.integ.initialize(self.state)
         else:
             self._take(exports)
@@ -460,6 +463,7 @@ def integrate_by_groups(
         "build": build_kwargs,
         "options": options,
         "full_ids": full_ids,
+        "state0": cm.state0,
     }
     wall0 = _time.perf_counter()
     n_workers = settings.workers
