@@ -255,3 +255,25 @@ def test_groups_start_from_the_scenes_given_state(snap):
     assert y[-1] - y[0] == pytest.approx(0.5 * 0.004, rel=0.05)  # sideways at 0.5 m/s
     other = res.positions[:, cm.consignments["c1"].node_ids, 1].mean(axis=1)
     assert abs(other[-1] - other[0]) < 1e-5
+
+
+def test_a_merged_group_splits_again_once_its_parts_are_apart(snap):
+    # c0 leaves at belt speed, c1 starts at rest 50 mm behind it. With a merge slack of 60 mm
+    # they start as one group; they part at about 1.6 m/s, and once the packagings are
+    # farther apart than the merge gap plus split_slack the group splits into the two, each
+    # with its part of the state: the frames go on as one model's within its tolerance
+    base = throughput_layout(snap.build, 2)
+    lead, trail = base.placements
+    layout = SceneLayout(base.conveyor, (replace(lead, speed=1.6), trail))
+    settings = GroupSettings(workers=1, merge_slack=0.06, split_slack=0.01)
+    run = run_conveyor({"c": snap}, layout, 0.04, dt_out=0.005, groups=settings)
+    g = run.result.stats["groups"]
+    assert [m["time"] for m in g["merges"]] == [0.0]
+    (sp,) = g["splits"]
+    assert sp["parts"] == [["c0"], ["c1"]] and 0.0 < sp["time"] < 0.04
+    assert g["final"] == [["c0"], ["c1"]] and g["rewinds"] == 0
+    one = run_conveyor({"c": snap}, layout, 0.04, dt_out=0.005)
+    tol = conveyor_options().tol_displacement
+    c1, c2 = _centroids(one), _centroids(run)
+    for k in c1:
+        assert np.abs(c1[k] - c2[k]).max() < tol, k

@@ -16,18 +16,21 @@ How (a co-simulation with exact coupling, synchronised at every output frame):
   contact of the full scene among its members. At t = 0 each placement is its own group
   unless it starts within merge distance of another.
 * All groups advance to the next output frame. At each frame, for every two groups whose
-  consignments have contact in the full scene, the gap between their node bounding boxes
-  is compared with ``reach + lookahead dt_out (|u_A - u_B| + s_A + s_B) + merge_slack``
-  (lookahead 2 by default; u: mean node velocity of a group, s: the largest node speed
-  about it; reach: the two packaging contact radii, more than their face contact
-  thickness). Groups within it are merged
+  consignments have contact in the full scene, the gap between their packagings (the
+  nearest node of either to a face of the other, as their contact measures it,
+  :func:`mesh_gap`) of each two of their consignments A, B is compared with
+  ``reach + lookahead dt_out (|u_A - u_B| + s_A + s_B) + merge_slack`` (lookahead 2 by
+  default; u: mean velocity of a packaging's nodes, s: their largest speed about it; reach:
+  the two packaging contact radii, more than their face contact thickness); a bounding box
+  test first skips the pairs that are far apart. Groups within it are merged
   before the next frame: the merged model takes the members' states and integrator
   histories (algorithmic accelerations, stick springs and anchors, matched by node and
   contact), so no contact between them can open before they are one model.
 * Each frame is checked as well: two groups closer than ``reach`` (they could touch) mean
   the prediction missed; both are then rewound to the frame before, merged, and that frame
   is integrated again together (``stats["groups"]["rewinds"]``).
-* Groups never split again.
+* A merged group splits again into the parts that are farther apart than that merge gap
+  plus ``split_slack``; each part takes its share of the group's state and history.
 
 What differs from one model: each group's step sizes and error estimate are its own, so the
 frames agree with a one-model run within the integrator's tolerances, not bit for bit.
@@ -48,8 +51,11 @@ from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import numba as nb
 import numpy as np
 
+from flexparcel.contact.broadphase import point_triangle_candidates
+from flexparcel.contact.geometry import point_triangle
 from flexparcel.integrate.dynamic import GeneralizedAlpha, IntegratorOptions, Stats
 from flexparcel.io.checkpoint import (
     CHECKPOINT_FORMAT,
@@ -64,7 +70,7 @@ from flexparcel.io.checkpoint import (
 from flexparcel.model.builder import State
 from flexparcel.simulate import FrameRecorder, SimulationResult
 
-__all__ = ["GroupSettings", "integrate_by_groups", "box_gap"]
+__all__ = ["GroupSettings", "integrate_by_groups", "box_gap", "mesh_gap"]
 
 
 @dataclass(frozen=True)
@@ -74,11 +80,14 @@ class GroupSettings:
     Attributes:
         workers: worker processes (>= 1; 1 runs the groups in this process, one after
             another: the groups still take their own steps).
-        threads_per_worker: numba threads of each worker (>= 1).
+        threads_per_worker: numba threads of each worker while several are at work (>= 1);
+            a worker alone at work in a frame gets ``workers`` times as many.
         merge_slack: extra gap [m] >= 0 below which two groups are merged.
         lookahead: output intervals >= 0 of approach at the frame's relative speed bound
             that the merge gap allows for (0: merge only within ``merge_slack``, and rewind
             whatever comes within reach).
+        split_slack: a merged group splits again into the parts that are farther apart
+            than the merge gap plus this [m] >= 0 (hysteresis against merging back at once).
         rebalance_frames: frames between load-balancing checks (>= 1).
     """
 
@@ -86,6 +95,7 @@ class GroupSettings:
     threads_per_worker: int = 1
     merge_slack: float = 0.005
     lookahead: float = 2.0
+    split_slack: float = 0.01
     rebalance_frames: int = 10
 
     def __post_init__(self) -> None:
@@ -93,7 +103,7 @@ class GroupSettings:
             v = getattr(self, key)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ValueError(f"GroupSettings.{key} must be an integer >= 1, got {v!r}")
-        for key, unit in (("merge_slack", " m"), ("lookahead", "")):
+        for key, unit in (("merge_slack", " m"), ("lookahead", ""), ("split_slack", " m")):
             v = getattr(self, key)
             if not (isinstance(v, int | float) and np.isfinite(v) and v >= 0.0):
                 raise ValueError(f"GroupSettings.{key} must be >= 0{unit}, got {v!r}")
@@ -104,6 +114,30 @@ def box_gap(lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarr
     overlap."""
     d = np.maximum(0.0, np.maximum(lo_b - hi_a, lo_a - hi_b))
     return float(np.sqrt(d @ d))
+
+
+@nb.njit(cache=True)
+def _closest(pairs, points, tris, pos, limit):
+    """Smallest point-triangle distance [m] over candidate pairs (K, 2), at most ``limit``."""
+    best = limit
+    for k in range(pairs.shape[0]):
+        t = tris[pairs[k, 1]]
+        d = abs(point_triangle(points[pairs[k, 0]], pos[t[0]], pos[t[1]], pos[t[2]])[0])
+        best = min(best, d)
+    return best
+
+
+def mesh_gap(pos: np.ndarray, a: tuple, b: tuple, limit: float) -> float:
+    """Distance [m] between two packagings as their contact sees it: the nearest node of
+    either to a face of the other (``a``, ``b``: (node ids (N,), triangles (M, 3)) into
+    ``pos`` (n, 3)), capped at ``limit`` (the broad phase looks no farther)."""
+    best = float(limit)
+    for (nodes, _), (_, tris) in ((a, b), (b, a)):
+        pts = np.ascontiguousarray(pos[nodes])
+        pairs = point_triangle_candidates(pts, 0.0, tris, pos, limit)
+        if pairs.size:
+            best = min(best, float(_closest(pairs, pts, tris, pos, limit)))
+    return best
 
 
 # ------------------------------------------------------------------ one group's integration
@@ -217,11 +251,12 @@ class _Group:
         for i, key in enumerate(self._face_keys):
             if key in faces:  # a set between two former groups has no history yet
                 hist[f"face_anchor_{i}"], hist[f"face_has_{i}"] = faces[key]
-        if len(exports) == 1:
+        if len(exports) == 1 and tuple(map(str, exports[0]["members"])) == self.names:
+            # the same group elsewhere (moved, resumed): it goes on exactly
             hist["scalars"] = exports[0]["scalars"]
             hist["stat_counts"] = exports[0]["stat_counts"]
             hist["stat_wall"] = exports[0]["stat_wall"]
-        else:
+        else:  # merged or split: a fresh step controller state and statistics
             hist["scalars"] = self._merged_scalars(exports)
         self.integ.restore_history(hist)
         self.state = State(float(exports[0]["time"]), pos, rot, vel, acc)
@@ -231,6 +266,7 @@ class _Group:
         s, hist = self.state, self.integ.history()
         out = {
             "time": np.array(s.time),
+            "members": np.array(self.names, dtype=str),
             "nodes": self.full.copy(),
             "positions": s.positions.copy(),
             "rotations": s.rotations.copy(),
@@ -284,8 +320,12 @@ class _Worker:
             key, names, exports = arg
             self.groups[key] = _Group(self.setup, tuple(names), exports)
             return self.groups[key].frame()
-        if cmd == "advance":  # (keys, t_out) -> {key: frame}
-            keys, t_out = arg
+        if cmd == "advance":  # (keys, t_out, numba threads or None) -> {key: frame}
+            keys, t_out, threads = arg
+            if threads is not None:
+                import numba
+
+                numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
             return {k: self.groups[k].advance(t_out) for k in keys}
         if cmd == "export":  # key -> export now
             return self.groups[arg].export()
@@ -384,6 +424,25 @@ class _GroupInfo:
     stats: dict = field(default_factory=dict)
 
 
+def _components(items: list, links: list) -> list[list]:
+    """Connected components of ``items`` under the pairs ``links`` (union-find), each in
+    the order of ``items``."""
+    parent = {k: k for k in items}
+
+    def find(k):
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    for a, b in links:
+        parent[find(a)] = find(b)
+    comp: dict = {}
+    for k in items:
+        comp.setdefault(find(k), []).append(k)
+    return list(comp.values())
+
+
 def _add_stats(total: dict, st: dict) -> None:
     for k, v in st.items():
         if k == "wall_s":
@@ -475,6 +534,7 @@ def integrate_by_groups(
     groups: dict[int, _GroupInfo] = {}
     retired: dict = {}
     merges: list = []
+    splits: list = []
     rewinds = 0
     worker_wall = [0.0] * n_workers
     next_key = 0
@@ -526,49 +586,74 @@ def integrate_by_groups(
         cur.rotations[ids] = fr["rotations"]
         cur.velocities[ids] = fr["velocities"]
 
+    # each placement's packaging surface: the only part that touches another consignment
+    tri = model.triangles
+    surf = {}
+    for k, c in cons.items():
+        inside = np.zeros(model.node_count, bool)
+        inside[c.packaging] = True
+        surf[k] = (np.asarray(c.packaging), np.ascontiguousarray(tri[inside[tri].all(axis=1)]))
+
+    def motion() -> dict:
+        """Per placement: packaging bounding box, mean velocity u and largest speed about it."""
+        out = {}
+        for k, (nodes, _) in surf.items():
+            x = cur.positions[nodes]
+            v = cur.velocities[nodes, :3]
+            u = v.mean(axis=0)
+            out[k] = (x.min(axis=0), x.max(axis=0), u, float(np.sqrt(((v - u) ** 2).sum(1)).max()))
+        return out
+
+    def near(mot, m: str, n: str, margin: bool, extra: float = 0.0) -> bool:
+        """Whether placements m and n are within their merge gap (margin: the lookahead
+        and slack added; else the contact reach alone) plus ``extra``."""
+        lm, hm, um, sm = mot[m]
+        ln, hn, un, sn = mot[n]
+        lim = radius[m] + radius[n] + extra
+        if margin:
+            rel = float(np.linalg.norm(um - un)) + sm + sn
+            lim += settings.lookahead * dt_out * rel + settings.merge_slack
+        if box_gap(lm, hm, ln, hn) >= lim:  # boxes apart: the meshes are too
+            return False
+        return mesh_gap(cur.positions, surf[m], surf[n], lim) < lim
+
     def close_pairs(margin: bool):
         """Pairs of group keys that must be one model (margin: predicted for the next
         frame; else: already within reach)."""
-        box = {}
-        for k, g in groups.items():
-            x = cur.positions[g.nodes]
-            v = cur.velocities[g.nodes, :3]
-            u = v.mean(axis=0)
-            box[k] = (x.min(axis=0), x.max(axis=0), u, float(np.sqrt(((v - u) ** 2).sum(1)).max()))
+        mot = motion()
         out = []
         keys = sorted(groups)
         for i, a in enumerate(keys):
             for b in keys[i + 1 :]:
-                pairs = [(m, n) for m in groups[a].names for n in groups[b].names
-                         if frozenset((m, n)) in can_touch]  # fmt: skip
-                if not pairs:
-                    continue
-                reach = max(radius[m] + radius[n] for m, n in pairs)
-                la, ha, ua, sa = box[a]
-                lb, hb, ub, sb = box[b]
-                lim = reach
-                if margin:
-                    rel = float(np.linalg.norm(ua - ub)) + sa + sb
-                    lim += settings.lookahead * dt_out * rel + settings.merge_slack
-                if box_gap(la, ha, lb, hb) < lim:
+                if any(frozenset((m, n)) in can_touch and near(mot, m, n, margin)
+                       for m in groups[a].names for n in groups[b].names):  # fmt: skip
                     out.append((a, b))
         return out
 
+    def split() -> None:
+        """Split merged groups into the parts that are farther apart than the merge gap plus
+        ``split_slack``: each part takes the group's state and history (its own nodes and
+        contacts), and steps on its own again."""
+        mot = motion()
+        for key in [k for k, g in groups.items() if len(g.names) > 1]:
+            g = groups[key]
+            linked = [(m, n) for i, m in enumerate(g.names) for n in g.names[i + 1 :]
+                      if frozenset((m, n)) in can_touch
+                      and near(mot, m, n, True, settings.split_slack)]  # fmt: skip
+            parts = _components(list(g.names), linked)
+            if len(parts) < 2:
+                continue
+            cost = float(np.mean(g.costs[-5:])) if g.costs else None
+            size = g.nodes.size
+            e = retire(key, "export")
+            splits.append({"time": float(e["time"]), "parts": [list(p) for p in parts]})
+            for members in parts:
+                k2 = create(tuple(members), [e])
+                if cost is not None:  # dealt by its share of the group's cost
+                    groups[k2].estimate = cost * groups[k2].nodes.size / size
+
     def components(pairs) -> list[list[int]]:
-        parent = {k: k for k in groups}
-
-        def find(k):
-            while parent[k] != k:
-                parent[k] = parent[parent[k]]
-                k = parent[k]
-            return k
-
-        for a, b in pairs:
-            parent[find(a)] = find(b)
-        comp: dict[int, list[int]] = {}
-        for k in groups:
-            comp.setdefault(find(k), []).append(k)
-        return [sorted(c) for c in comp.values() if len(c) > 1]
+        return [sorted(c) for c in _components(list(groups), pairs) if len(c) > 1]
 
     def merge(pairs, how: str) -> list[int]:
         made = []
@@ -619,6 +704,7 @@ def integrate_by_groups(
             info = json.loads(str(resumed.history["groups_json"]))
             retired = info["retired"]
             merges = info["merges"]
+            splits = info["splits"]
             rewinds = info["rewinds"]
             worker_wall = (info["worker_wall"] + [0.0] * n_workers)[:n_workers]
             for i, members in enumerate(info["groups"]):
@@ -632,7 +718,7 @@ def integrate_by_groups(
             hist = {"wall_total": np.array(wall_before + _time.perf_counter() - wall0)}
             info = {
                 "groups": [list(g.names) for g in groups.values()],
-                "retired": retired, "merges": merges, "rewinds": rewinds,
+                "retired": retired, "merges": merges, "splits": splits, "rewinds": rewinds,
                 "worker_wall": worker_wall,
             }  # fmt: skip
             hist["groups_json"] = np.array(json.dumps(info))
@@ -649,8 +735,12 @@ def integrate_by_groups(
             while todo:
                 busy = sorted({groups[k].worker for k in todo})
                 t_start = {w: _time.perf_counter() for w in busy}
+                # a worker alone at work gets the others' cores for its tangent assembly
+                threads = None if n_workers == 1 else (
+                    settings.threads_per_worker * (n_workers if len(busy) == 1 else 1))  # fmt: skip
                 for w in busy:
-                    handles[w].send("advance", ([k for k in todo if groups[k].worker == w], t_out))
+                    keys = [k for k in todo if groups[k].worker == w]
+                    handles[w].send("advance", (keys, t_out, threads))
                 for w in busy:
                     for k, fr in handles[w].recv().items():
                         groups[k].costs.append(fr["wall"])
@@ -668,6 +758,7 @@ def integrate_by_groups(
             if progress is not None:
                 progress(cur.time, t_end)
             merge(close_pairs(margin=True), "export")
+            split()
             if (i_frame + 1) % settings.rebalance_frames == 0:
                 rebalance()
             if checkpoint is not None and t_out != out_times[-1]:
@@ -707,6 +798,7 @@ def integrate_by_groups(
         "final": final_groups,
         "per_group": per_group,
         "merges": merges,
+        "splits": splits,
         "rewinds": rewinds,
         "workers": n_workers,
         "worker_busy_s": worker_wall,
