@@ -326,6 +326,20 @@ def test_pressed_packaging_stays_in_front_of_a_deflector_sheet(sheet_thickness):
         assert gap.max() < -h  # through the face: nothing stops them behind it
 
 
+def _tip_scene():
+    """A builder with the paper conveyor (belt at rest, no gravity); its first deflector, the
+    scene's deflector law (linear, no stick model), the contact thickness of a 0.3 mm film
+    on the sheet and the tip's mid-plane line (a point of it)."""
+    from flexparcel.scenarios.conveyor_scene import belt_law
+
+    b = fp.ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    parts = add_conveyor(b, ConveyorScene(belt_speed=0.0))
+    g = parts.deflectors[0]
+    h = parts.deflector_contact_thickness(SHEET_T / 2)
+    mid = g.tip - 0.5 * parts.scene.deflector_thickness * g.normal
+    return b, parts, g, belt_law(stick_model=False), h, mid
+
+
 @pytest.mark.parametrize("tip_contact", [True, False])
 def test_packaging_face_pressed_on_a_deflector_tip_is_held_by_the_tip_edge(tip_contact):
     # A 40 x 40 mm one-quad sheet stands across the first deflector's tip, square to the
@@ -343,14 +357,8 @@ def test_packaging_face_pressed_on_a_deflector_tip_is_held_by_the_tip_edge(tip_c
         TIP_STATION_SPACING,
         add_deflector_contact,
     )
-    from flexparcel.scenarios.conveyor_scene import belt_law
 
-    b = fp.ModelBuilder(gravity=(0.0, 0.0, 0.0))
-    parts = add_conveyor(b, ConveyorScene(belt_speed=0.0))
-    g = parts.deflectors[0]
-    law = belt_law(stick_model=False)
-    h = parts.deflector_contact_thickness(SHEET_T / 2)
-    mid = g.tip - 0.5 * parts.scene.deflector_thickness * g.normal  # the tip's mid-plane line
+    b, parts, g, law, h, mid = _tip_scene()
     start = mid + (h + 0.5e-3) * g.tangent
     pts = np.array([start + u * g.normal + np.array([0.0, 0.0, z])
                     for z in (0.03, 0.07) for u in (-0.02, 0.02)])  # fmt: skip
@@ -395,14 +403,8 @@ def test_packaging_edge_across_a_deflector_tip_is_held_edge_to_edge(edge_contact
     # 75 mm) carries the law once: at rest it carries 4 F, so g = 4 F / c = 0.033 mm and the
     # edge rests h - g from the tip line. Without edge-to-edge contact it goes through.
     from flexparcel.scenarios.conveyor import add_deflector_contact
-    from flexparcel.scenarios.conveyor_scene import belt_law
 
-    b = fp.ModelBuilder(gravity=(0.0, 0.0, 0.0))
-    parts = add_conveyor(b, ConveyorScene(belt_speed=0.0))
-    g = parts.deflectors[0]
-    law = belt_law(stick_model=False)
-    h = parts.deflector_contact_thickness(SHEET_T / 2)
-    mid = g.tip - 0.5 * parts.scene.deflector_thickness * g.normal  # the tip's mid-plane line
+    b, parts, g, law, h, mid = _tip_scene()
     start = mid + (h + 0.5e-3) * g.tangent + np.array([0.0, 0.0, 0.06])
     pts = np.array([start + u * g.normal + v * g.tangent
                     for v in (0.0, 0.04) for u in (-0.02, 0.02)])  # fmt: skip

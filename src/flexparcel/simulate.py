@@ -29,7 +29,7 @@ from flexparcel.io.checkpoint import (
 )
 from flexparcel.model.builder import Model, State
 
-__all__ = ["SimulationResult", "FrameRecorder", "simulate", "state_energies"]
+__all__ = ["SimulationResult", "FrameRecorder", "simulate", "state_energies", "output_times"]
 
 
 @dataclass
@@ -65,6 +65,15 @@ def state_energies(model: Model, state: State) -> tuple[float, float, float]:
     kin = asm.kinetic_energy(model, state.velocities, state.rotations)
     grav = -float(np.sum(model.mass[:, :3] * model.gravity * (state.positions - model.positions0)))
     return kin, strain, grav
+
+
+def output_times(t0: float, t_end: float, dt_out: float) -> np.ndarray:
+    """Output times [s] after ``t0``: every ``dt_out`` and ``t_end`` itself."""
+    n_out = int(np.floor((t_end - t0) / dt_out + 1e-9))
+    out = t0 + dt_out * np.arange(1, n_out + 1)
+    if out.size == 0 or out[-1] < t_end - 1e-12:
+        out = np.append(out, t_end)
+    return out
 
 
 class FrameRecorder:
@@ -185,10 +194,7 @@ def simulate(
             )
     wall0 = _time.perf_counter()
     integ.initialize(s)
-    n_out = int(np.floor((t_end - t0) / dt_out + 1e-9))
-    out_times = t0 + dt_out * np.arange(1, n_out + 1)
-    if out_times.size == 0 or out_times[-1] < t_end - 1e-12:
-        out_times = np.append(out_times, t_end)
+    out_times = output_times(t0, t_end, dt_out)
     breaks = sorted(
         {float(b) for sch in model.schedules for b in sch.breakpoints()}
         | {float(b) for b in model.gravity_schedule.breakpoints()}

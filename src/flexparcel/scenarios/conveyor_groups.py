@@ -68,7 +68,7 @@ from flexparcel.io.checkpoint import (
     state_fingerprint,
 )
 from flexparcel.model.builder import State
-from flexparcel.simulate import FrameRecorder, SimulationResult
+from flexparcel.simulate import FrameRecorder, SimulationResult, output_times
 
 __all__ = ["GroupSettings", "integrate_by_groups", "box_gap", "mesh_gap"]
 
@@ -488,10 +488,7 @@ def integrate_by_groups(
     settings = settings or GroupSettings()
     model = cm.model
     t0 = cm.state0.time
-    n_out = int(np.floor((t_end - t0) / dt_out + 1e-9))
-    out_times = t0 + dt_out * np.arange(1, n_out + 1)
-    if out_times.size == 0 or out_times[-1] < t_end - 1e-12:
-        out_times = np.append(out_times, t_end)
+    out_times = output_times(t0, t_end, dt_out)
     names = [p.name for p in cm.layout.placements]
     cons = cm.consignments
     can_touch = {frozenset(p) for p in cm.consignment_pairs}
