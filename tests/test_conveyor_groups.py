@@ -229,6 +229,14 @@ def test_grouped_checkpoint_resumes_and_refuses_a_one_model_one(snap, tmp_path):
             progress=stop_at, checkpoint=ck, checkpoint_interval_s=0.0,
         )  # fmt: skip
     assert ck.is_file()
+    before = ck.read_bytes()
+    # what the checkpoint holds so far (run conveyor --preview), without stepping
+    seen = run_conveyor({"c": snap}, layout, 0.01, dt_out=0.002, groups=settings,
+                        checkpoint=ck, checkpoint_only=True)  # fmt: skip
+    assert seen.result.time[-1] == pytest.approx(0.004)  # the last frame saved before 0.0055
+    k = len(seen.result.time)
+    np.testing.assert_array_equal(seen.result.positions, full.result.positions[:k])
+    assert ck.read_bytes() == before
     again = run_conveyor({"c": snap}, layout, 0.01, dt_out=0.002, groups=settings, checkpoint=ck)
     np.testing.assert_array_equal(again.result.positions, full.result.positions)
     assert again.result.stats["steps"] == full.result.stats["steps"]
