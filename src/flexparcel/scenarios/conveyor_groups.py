@@ -81,7 +81,8 @@ class GroupSettings:
         workers: worker processes (>= 1; 1 runs the groups in this process, one after
             another: the groups still take their own steps).
         threads_per_worker: numba threads of each worker while several are at work (>= 1);
-            a worker alone at work in a frame gets ``workers`` times as many.
+            a worker alone at work in a frame, or with more than 80 % of the recent work,
+            gets ``workers`` times as many.
         merge_slack: extra gap [m] >= 0 below which two groups are merged.
         lookahead: output intervals >= 0 of approach at the frame's relative speed bound
             that the merge gap allows for (0: merge only within ``merge_slack``, and rewind
@@ -732,11 +733,15 @@ def integrate_by_groups(
             while todo:
                 busy = sorted({groups[k].worker for k in todo})
                 t_start = {w: _time.perf_counter() for w in busy}
-                # a worker alone at work gets the others' cores for its tangent assembly
-                threads = None if n_workers == 1 else (
-                    settings.threads_per_worker * (n_workers if len(busy) == 1 else 1))  # fmt: skip
+                # a worker alone at work, or one with most of the recent work (the others
+                # idle for most of the frame), gets the others' cores for its tangent assembly
+                share = {w: load(w) for w in busy}
+                total_load = sum(share.values())
                 for w in busy:
                     keys = [k for k in todo if groups[k].worker == w]
+                    lead = len(busy) == 1 or share[w] > 0.8 * total_load
+                    threads = None if n_workers == 1 else (
+                        settings.threads_per_worker * (n_workers if lead else 1))  # fmt: skip
                     handles[w].send("advance", (keys, t_out, threads))
                 for w in busy:
                     for k, fr in handles[w].recv().items():
