@@ -155,9 +155,9 @@ def _set_key(nodes: np.ndarray, tris: np.ndarray, thickness: float) -> str:
 
 
 class _Group:
-    """One group's model, integrator and state (in a worker). ``export`` and ``from_exports``
-    carry its state and integrator history in full-scene numbering, keyed by node and
-    contact, so that a model of other members can take them over."""
+    """One group's model, integrator and state (in a worker). :meth:`export` carries its
+    state and integrator history in full-scene numbering, keyed by node and contact, so that
+    a model of other members can take them over (``exports`` of the constructor)."""
 
     def __init__(self, setup: dict, names: tuple[str, ...], exports: list[dict] | None):
         from flexparcel.scenarios.conveyor_scene import SceneLayout, build_conveyor_model
@@ -187,6 +187,12 @@ class _Group:
         f = self.full
         self._bp_keys = [(int(f[n]), int(f[b])) for n, b in zip(m.bp_node, m.bp_box, strict=True)]
         self._face_keys = [_set_key(f[fs[0]], f[fs[1]], fs[2]) for fs in m.face_sets]
+        # the same keys as arrays, for every export (they do not change)
+        self._key_arrays = {
+            "cp_key": np.array(self._cp_keys, dtype=float).reshape(-1, 5),
+            "bp_key": np.array(self._bp_keys, dtype=np.int64).reshape(-1, 2),
+            "face_key": np.array(self._face_keys, dtype="U64"),
+        }
         self.wall = 0.0  # wall time of the last advance [s]
         sched = list(m.schedules) + [m.gravity_schedule]
         self._breaks = sorted({float(b) for s in sched for b in s.breakpoints()})
@@ -216,22 +222,21 @@ class _Group:
     def _take(self, exports: list[dict]) -> None:
         """State and history from the members' exports (all at one time)."""
         m = self.model
-        pos = m.positions0.copy()
-        rot = np.broadcast_to(np.eye(3), (m.node_count, 3, 3)).copy()
-        vel = np.zeros((m.node_count, 6))
-        acc = np.zeros((m.node_count, 6))
         self.integ._alg = np.zeros((m.node_count, 6))  # restore_history replaces it
         hist = self.integ.history()
-        where = {}
-        for e in exports:
-            where.update({int(n): (e, k) for k, n in enumerate(e["nodes"])})
-        for k, full in enumerate(self.full):
-            e, j = where[int(full)]
-            pos[k], rot[k], vel[k], acc[k] = (
-                e["positions"][j], e["rotations"][j], e["velocities"][j], e["accelerations"][j]
-            )  # fmt: skip
-            hist["alg"][k] = e["alg"][j]
-            hist["fc_prev"][k] = e["fc_prev"][j]
+        # node arrays: scattered into full-scene numbering, then gathered for this model
+        n_full = 1 + max(int(e["nodes"].max()) for e in exports)
+        node = {}
+        for key in ("positions", "rotations", "velocities", "accelerations", "alg", "fc_prev"):
+            full = np.full((n_full, *exports[0][key].shape[1:]), np.nan)
+            for e in exports:
+                full[e["nodes"]] = e[key]
+            node[key] = full[self.full]
+            if np.isnan(node[key]).any():
+                raise ValueError(f"group {self.names}: the exports do not cover its nodes")
+        hist["alg"], hist["fc_prev"] = node["alg"], node["fc_prev"]
+        pos, rot, vel, acc = (node[k] for k in ("positions", "rotations", "velocities",
+                                                 "accelerations"))  # fmt: skip
         cp = {}
         bp = {}
         faces = {}
@@ -273,9 +278,7 @@ class _Group:
             "rotations": s.rotations.copy(),
             "velocities": s.velocities.copy(),
             "accelerations": s.accelerations.copy(),
-            "cp_key": np.array(self._cp_keys, dtype=float).reshape(-1, 5),
-            "bp_key": np.array(self._bp_keys, dtype=np.int64).reshape(-1, 2),
-            "face_key": np.array(self._face_keys, dtype="U64"),
+            **self._key_arrays,
         }
         out.update({k: v for k, v in hist.items()})
         return out
