@@ -31,8 +31,12 @@ def test_mesh_of_a_held_body_is_held_and_of_a_driven_body_moves_with_it(motion):
     body = b.add_rigid_body(RoundedBox(0.2, 0.2, 0.02, mass=1.0), (0.0, 0.0, -0.01), motion=drive)
     surf = np.array([[-0.1, -0.1, 0.0], [0.1, -0.1, 0.0], [0.1, 0.1, 0.0], [-0.1, 0.1, 0.0]])
     verts = b.add_rigid_mesh(surf, np.array([[0, 1, 2], [0, 2, 3]]), body)
-    b.add_shell_mesh(*fp.mesh.rectangle(0.05, 0.05, 2, 2), material=fp.ShellMaterial(
-        youngs_modulus=1e9, poisson_ratio=0.3, density=1000.0, thickness=1e-3))
+    b.add_shell_mesh(
+        *fp.mesh.rectangle(0.05, 0.05, 2, 2),
+        material=fp.ShellMaterial(
+            youngs_modulus=1e9, poisson_ratio=0.3, density=1000.0, thickness=1e-3
+        ),
+    )
     model = b.finalize()
     held = motion == "fixed"
     assert bool(model.fixed[verts].all()) is held
