@@ -200,6 +200,11 @@ def test_conveyor_parts_geometry_and_face_meshes():
         assert along.max() == pytest.approx(g.length)
         assert abs(g.outer_end[1]) == pytest.approx(0.3 + 0.1 / np.sqrt(2.0))
         assert model.fixed[verts].all() and not np.isin(verts, model.slave_nodes).any()
+    for g, ends in zip(parts.deflectors, parts.deflector_ends, strict=True):
+        # the outer end edge: bottom to top, overhang beyond the belt edge
+        along = (model.positions0[ends] - g.root) @ g.tangent
+        assert np.allclose(along, -scene.deflector_overhang, rtol=0, atol=1e-12)
+        assert np.all(np.diff(model.positions0[ends, 2]) > 0.0)
     for g, verts, tip in zip(
         parts.deflectors, parts.deflector_vertices, parts.deflector_tips, strict=True
     ):
@@ -393,41 +398,47 @@ def test_packaging_face_pressed_on_a_deflector_tip_is_held_by_the_tip_edge(tip_c
 
 
 @pytest.mark.parametrize("edge_contact", [True, False])
-def test_packaging_edge_across_a_deflector_tip_is_held_edge_to_edge(edge_contact):
+@pytest.mark.parametrize("edge", ["tip", "end"])
+def test_packaging_edge_across_a_deflector_edge_is_held_edge_to_edge(edge, edge_contact):
     # A 40 x 40 mm one-quad stiff plate lies flat, 60 mm above the belt, beyond the first
-    # deflector's tip: its near edge runs square to the sheet (its nodes 20 mm either side of
-    # the sheet's mid-plane) 0.5 mm beyond the contact thickness h from the tip's mid-plane
-    # line, and each node is pushed towards the root by F = 5 N (ramped over 2 ms, no gravity;
-    # the paper scene's deflector law, linear c = 611 N/mm). No node comes near the sheet and
-    # the plate's face is 2.5 mm from the tip's nearest stations: only the edge crossing the
-    # tip edge can hold it. One pair (the plate's near edge, the tip segment from 50 to
-    # 75 mm) carries the law once: at rest it carries 4 F, so g = 4 F / c = 0.033 mm and the
-    # edge rests h - g from the tip line. Without edge-to-edge contact it goes through.
+    # deflector's tip (or beyond its outer end, past the belt edge): its near edge runs
+    # square to the sheet (its nodes 20 mm either side of the sheet's mid-plane) 0.5 mm
+    # beyond the contact thickness h from the edge's mid-plane line, and each node is pushed
+    # towards the sheet by F = 5 N (ramped over 2 ms, no gravity; the paper scene's
+    # deflector law, linear c = 611 N/mm). No node comes near the sheet and the plate's face
+    # is 2.5 mm from the edge's nearest stations: only the edge crossing the sheet's edge can
+    # hold it. One pair (the plate's near edge, the sheet edge's segment from 50 to 75 mm)
+    # carries the law once: at rest it carries 4 F, so g = 4 F / c = 0.033 mm and the edge
+    # rests h - g from the line. Without edge-to-edge contact it goes through.
     from flexparcel.scenarios.conveyor import add_deflector_contact
 
     b, parts, g, law, h, mid = _tip_scene()
-    start = mid + (h + 0.5e-3) * g.tangent + np.array([0.0, 0.0, 0.06])
-    pts = np.array([start + u * g.normal + v * g.tangent
+    out = g.tangent  # from the sheet's edge outwards, along the sheet
+    if edge == "end":
+        mid = g.outer_end - 0.5 * parts.scene.deflector_thickness * g.normal
+        out = -g.tangent
+    start = mid + (h + 0.5e-3) * out + np.array([0.0, 0.0, 0.06])
+    pts = np.array([start + u * g.normal + v * out
                     for v in (0.0, 0.04) for u in (-0.02, 0.02)])  # fmt: skip
     mat = fp.ShellMaterial(210e9, 0.3, 7850.0, 2e-3, 1e-5)
     plate = b.add_shell_mesh(pts, np.array([[0, 1, 3, 2]]), material=mat)
     if edge_contact:
         add_deflector_contact(b, parts, plate, law, shell_half_thickness=SHEET_T / 2)
-    else:  # the contacts of add_deflector_contact before edge-to-edge
-        tip = parts.deflector_tips[0]
+    else:  # the contacts of add_deflector_contact but edge-to-edge
         b.add_face_contact(plate, parts.deflector_vertices[0], law, thickness=h)
-        b.add_edge_face_contact(tip, plate, law, thickness=h, samples=5)
+        for line in (parts.deflector_tips[0], parts.deflector_ends[0]):
+            b.add_edge_face_contact(line, plate, law, thickness=h, samples=5)
     force = 5.0
-    b.add_force(plate, -force * g.tangent, schedule=fp.Schedule((0.0, 2e-3), (0.0, 1.0)))
+    b.add_force(plate, -force * out, schedule=fp.Schedule((0.0, 2e-3), (0.0, 1.0)))
     r = fp.simulate(b.finalize(), 10e-3, dt_out=1e-3)
     near = plate[:2]
-    gap = (r.positions[-1, near] - mid) @ g.tangent  # the near edge's distance from the tip
+    gap = (r.positions[-1, near] - mid) @ out  # the near edge's distance from the line
     if edge_contact:
         s = 4 * force / law.stiffness
         assert gap.mean() == pytest.approx(h - s, rel=0.01)
-        assert np.ptp(gap) < 5e-6  # square to the tip: no turn
+        assert np.ptp(gap) < 5e-6  # square to the edge: no turn
     else:
-        assert gap.max() < 0.0  # through the tip: no station reaches an edge between them
+        assert gap.max() < 0.0  # through the edge: no station reaches an edge between them
 
 
 # ------------------------------------------------------------------------------ responses

@@ -280,6 +280,9 @@ class ConveyorParts:
     line, bottom to top (its segments, see :data:`TIP_SEGMENT_LENGTH`), shape (m + 1,) each."""
     side_guide_planes: tuple[int, ...] = field(default=())
     """Plane ids of the guides at y = +width/2 and y = -width/2, or () if none."""
+    deflector_ends: tuple[np.ndarray, ...] = field(default=())
+    """Node ids of each deflector mesh's outer end edge, the vertical edge ``overhang``
+    beyond the belt edge, bottom to top, shape (m + 1,) each."""
 
     def deflector_contact_thickness(self, shell_half_thickness: float) -> float:
         """Contact thickness [m] of shell nodes of half thickness ``shell_half_thickness``
@@ -300,10 +303,11 @@ a packaging face draped over the tip meets several of them."""
 
 def _face_mesh(g: DeflectorGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vertices ((n + 1) (m + 1), 3) [m] and triangles (2 n m, 3) of n columns by m rows of
-    cells over the face, counter-clockwise seen from the upstream side, and the tip edge's
-    vertex indices (m + 1,), bottom to top. Face contact takes the closest point on a
-    triangle, so a flat face needs few columns (cells about as long as the face is high);
-    the rows, about :data:`TIP_SEGMENT_LENGTH` high, cut the tip edge into segments."""
+    cells over the face, counter-clockwise seen from the upstream side, and the vertex
+    indices (m + 1,) of the tip edge and of the outer end edge, bottom to top. Face contact
+    takes the closest point on a triangle, so a flat face needs few columns (cells about as
+    long as the face is high); the rows, about :data:`TIP_SEGMENT_LENGTH` high, cut the
+    edges into segments."""
     n = max(1, math.ceil((g.overhang + g.length) / g.height))
     m = max(1, math.ceil(g.height / TIP_SEGMENT_LENGTH - 1e-9))
     a = np.linspace(-g.overhang, g.length, n + 1)
@@ -320,7 +324,7 @@ def _face_mesh(g: DeflectorGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray
     if np.cross(p[1] - p[0], p[2] - p[0]) @ g.normal < 0.0:
         tris = tris[:, [0, 2, 1]]
     tip = np.arange(m + 1) * (n + 1) + n
-    return pts, tris.astype(np.int64), tip
+    return pts, tris.astype(np.int64), tip, tip - n
 
 
 def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> ConveyorParts:
@@ -336,10 +340,10 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
     if not isinstance(scene, ConveyorScene):
         raise TypeError(f"add_conveyor: scene must be a ConveyorScene, got {type(scene)}")
     belt = builder.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (scene.belt_speed, 0.0, 0.0))
-    bodies, vertices, tips = [], [], []
+    bodies, vertices, tips, ends = [], [], [], []
     geometry = scene.deflectors()
     for g in geometry:
-        pts, tris, tip = _face_mesh(g)
+        pts, tris, tip, end = _face_mesh(g)
         t, h = scene.deflector_thickness, g.height
         pts = pts - 0.5 * t * g.normal  # the sheet's mid-plane
         centre = g.root + 0.5 * (g.length - g.overhang) * g.tangent + np.array([0, 0, 0.5 * h])
@@ -351,6 +355,7 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
         bodies.append(body)
         vertices.append(builder.add_rigid_mesh(pts, tris, body))
         tips.append(vertices[-1][tip])
+        ends.append(vertices[-1][end])
     guides: tuple[int, ...] = ()
     if scene.side_guides:
         half = 0.5 * scene.belt_width
@@ -366,6 +371,7 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
         deflectors=geometry,
         deflector_tips=tuple(tips),
         side_guide_planes=guides,
+        deflector_ends=tuple(ends),
     )
 
 
@@ -380,21 +386,26 @@ def add_deflector_contact(
     """Contact of a shell mesh (``node_ids``: its nodes, e.g. a packaging; half thickness
     ``shell_half_thickness`` [m]) with every deflector of ``parts`` by ``law``: its nodes
     against each deflector's mid-plane mesh (:meth:`ConveyorParts.deflector_contact_thickness`),
-    and each deflector's tip edge against its faces (line contact, the same thickness: the
-    sheet's end rounded by half its thickness; stations every :data:`TIP_STATION_SPACING`,
-    each segment of :data:`TIP_SEGMENT_LENGTH` carrying the law once), and the tip edge's
-    segments against the shell's element edges (edge-to-edge, the same thickness, the law
-    once per crossing pair, regularised friction: :mod:`flexparcel.contact.edge_edge`).
-    Node-to-face contact alone lets a face pressed on the tip pass through it between its
-    nodes, and the tip's stations let an element edge wrapped round the tip pass between
-    them (in the paper scene's 2 s runs of sessions 15 and 16, packaging edges came up to
-    1.2 mm inside the contact thickness there)."""
+    and each deflector's two free vertical edges (the tip, and the outer end beyond the belt
+    edge) against its faces (line contact, the same thickness: the sheet's end rounded by
+    half its thickness; stations every :data:`TIP_STATION_SPACING`, each segment of
+    :data:`TIP_SEGMENT_LENGTH` carrying the law once), and those edges' segments against the
+    shell's element edges (edge-to-edge, the same thickness, the law once per crossing pair,
+    regularised friction: :mod:`flexparcel.contact.edge_edge`). Node-to-face contact alone
+    lets a face pressed on the tip pass through it between its nodes, and the tip's stations
+    let an element edge wrapped round the tip pass between them (in the paper scene's 2 s
+    runs of sessions 15 and 16, packaging edges came up to 1.2 mm inside the contact
+    thickness there); in session 18's run a film hanging over the belt edge at the second
+    deflector's root wrapped the sheet's outer end, and an element cut through the sheet
+    there."""
     thick = parts.deflector_contact_thickness(shell_half_thickness)
-    for verts, tip, g in zip(
-        parts.deflector_vertices, parts.deflector_tips, parts.deflectors, strict=True
+    ends = parts.deflector_ends or (None,) * len(parts.deflectors)
+    for verts, tip, end, g in zip(
+        parts.deflector_vertices, parts.deflector_tips, ends, parts.deflectors, strict=True
     ):
         builder.add_face_contact(node_ids, verts, law, thickness=thick)
         segment = g.height / (len(tip) - 1)
         samples = max(1, math.ceil(segment / TIP_STATION_SPACING - 1e-9))
-        builder.add_edge_face_contact(tip, node_ids, law, thickness=thick, samples=samples)
-        builder.add_edge_edge_contact(tip, node_ids, law, thickness=thick)
+        for edge in (tip,) if end is None else (tip, end):
+            builder.add_edge_face_contact(edge, node_ids, law, thickness=thick, samples=samples)
+            builder.add_edge_edge_contact(edge, node_ids, law, thickness=thick)
