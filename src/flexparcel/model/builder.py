@@ -843,8 +843,8 @@ class ModelBuilder:
         # a slave of a master held in all six DOFs (the mesh nodes of a fixed deflector) never
         # moves: hold it as well instead of carrying it through the rigid-link reduction,
         # whose products would only add zeros (T's rows of such a slave are empty) at every
-        # Newton iteration (measured on PB alone on the paper's conveyor: 60 deflector nodes,
-        # the reduction and the links' geometric stiffness about 15 % of an iteration)
+        # Newton iteration (measured on PB alone on the paper's conveyor, 60 deflector nodes:
+        # 46.9 ms against 48.5 ms a Newton iteration)
         driven = set(int(v) for v in pres_nodes)
         still = np.array([bool(fixed[r].all()) and int(r) not in driven for r in slave_master])
         if still.size and still.any():

@@ -301,7 +301,9 @@ TIP_STATION_SPACING = 5e-3
 a packaging face draped over the tip meets several of them."""
 
 
-def _face_mesh(g: DeflectorGeometry) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _face_mesh(
+    g: DeflectorGeometry,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Vertices ((n + 1) (m + 1), 3) [m] and triangles (2 n m, 3) of n columns by m rows of
     cells over the face, counter-clockwise seen from the upstream side, and the vertex
     indices (m + 1,) of the tip edge and of the outer end edge, bottom to top. Face contact
