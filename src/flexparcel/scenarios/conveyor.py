@@ -278,11 +278,11 @@ class ConveyorParts:
     deflector_tips: tuple[np.ndarray, ...]
     """Node ids of each deflector mesh's tip edge, the vertical edge near the belt's centre
     line, bottom to top (its segments, see :data:`TIP_SEGMENT_LENGTH`), shape (m + 1,) each."""
-    side_guide_planes: tuple[int, ...] = field(default=())
-    """Plane ids of the guides at y = +width/2 and y = -width/2, or () if none."""
-    deflector_ends: tuple[np.ndarray, ...] = field(default=())
+    deflector_ends: tuple[np.ndarray, ...]
     """Node ids of each deflector mesh's outer end edge, the vertical edge ``overhang``
     beyond the belt edge, bottom to top, shape (m + 1,) each."""
+    side_guide_planes: tuple[int, ...] = field(default=())
+    """Plane ids of the guides at y = +width/2 and y = -width/2, or () if none."""
 
     def deflector_contact_thickness(self, shell_half_thickness: float) -> float:
         """Contact thickness [m] of shell nodes of half thickness ``shell_half_thickness``
@@ -372,8 +372,8 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
         deflector_vertices=tuple(vertices),
         deflectors=geometry,
         deflector_tips=tuple(tips),
-        side_guide_planes=guides,
         deflector_ends=tuple(ends),
+        side_guide_planes=guides,
     )
 
 
@@ -401,13 +401,16 @@ def add_deflector_contact(
     deflector's root wrapped the sheet's outer end, and an element cut through the sheet
     there."""
     thick = parts.deflector_contact_thickness(shell_half_thickness)
-    ends = parts.deflector_ends or (None,) * len(parts.deflectors)
     for verts, tip, end, g in zip(
-        parts.deflector_vertices, parts.deflector_tips, ends, parts.deflectors, strict=True
+        parts.deflector_vertices,
+        parts.deflector_tips,
+        parts.deflector_ends,
+        parts.deflectors,
+        strict=True,
     ):
         builder.add_face_contact(node_ids, verts, law, thickness=thick)
         segment = g.height / (len(tip) - 1)
         samples = max(1, math.ceil(segment / TIP_STATION_SPACING - 1e-9))
-        for edge in (tip,) if end is None else (tip, end):
+        for edge in (tip, end):
             builder.add_edge_face_contact(edge, node_ids, law, thickness=thick, samples=samples)
             builder.add_edge_edge_contact(edge, node_ids, law, thickness=thick)
