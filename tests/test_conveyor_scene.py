@@ -315,6 +315,45 @@ def test_deflector_crossings_flag_packaging_behind_a_deflector(snapshot_dir):
         deflector_crossings(cm, res, depth=0.0)
 
 
+def test_deflector_edge_depths_measure_packaging_edges_at_the_tips_and_ends(snapshot_dir):
+    from types import SimpleNamespace
+
+    from flexparcel.scenarios.conveyor_scene import deflector_edge_depths
+
+    snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
+    cm = build_conveyor_model({"c": snap}, throughput_layout(snap.build, 2))
+    x0 = cm.state0.positions
+    pack = cm.consignments["c1"].packaging
+    centre = x0[pack].mean(axis=0)
+    node = int(pack[0])
+    h = cm.parts.deflector_contact_thickness(cm.consignments["c1"].contact_radius)
+
+    def near(line, gap):
+        """A point ``gap`` [m] from the vertical edge ``line`` (node ids) at mid height,
+        horizontally towards c1's packaging: every edge from there to c1's other nodes then
+        stays at least ``gap`` from the line, so the closest approach is exactly ``gap``."""
+        lo, hi = x0[line[0]], x0[line[-1]]
+        w = centre - lo
+        w[2] = 0.0
+        w /= np.linalg.norm(w)
+        assert np.all((x0[pack] - lo) @ w > 2 * h)  # the packaging lies on that side
+        return 0.5 * (lo + hi) + gap * w
+
+    frames = np.repeat(x0[None], 4, axis=0)
+    frames[1, node] = near(cm.parts.deflector_tips[0], 0.6 * h)  # depth 0.4 h at tip 1
+    frames[2, node] = near(cm.parts.deflector_ends[1], 0.1 * h)  # depth 0.9 h at end 2
+    frames[3, node] = near(cm.parts.deflector_tips[1], 2.0 * h)  # not within h
+    res = SimpleNamespace(time=np.array([0.0, 0.01, 0.02, 0.03]), positions=frames)
+    d = deflector_edge_depths(cm, res)
+    assert d["c0"] == {"depth_m": None, "thickness_m": h, "time": None, "edge": None}
+    assert d["c1"]["depth_m"] == pytest.approx(0.9 * h, rel=1e-9)
+    assert (d["c1"]["time"], d["c1"]["edge"]) == (0.02, "end 2")
+    res = SimpleNamespace(time=res.time[[0, 1, 3]], positions=frames[[0, 1, 3]])
+    d = deflector_edge_depths(cm, res)["c1"]
+    assert d["depth_m"] == pytest.approx(0.4 * h, rel=1e-9)
+    assert (d["time"], d["edge"]) == (0.01, "tip 1")
+
+
 @pytest.fixture(scope="module")
 def conveyor_run(snapshot_dir, tmp_path_factory):
     out = tmp_path_factory.mktemp("conveyor") / "run"

@@ -226,6 +226,7 @@ def _conveyor(
         "speedup_vs_recurdyn": recurdyn_s / run.wall_s,
         "responses": summary["consignments"],
         "deflector_crossings": summary["deflector_crossings"],
+        "deflector_edge_depths": summary["deflector_edge_depths"],
         "files": files,
         "note": "RecurDyn: 24 h on 4 cores for 2 s; recurdyn_wall_s is scaled to simulated_s. "
         "A short run extrapolates badly: the start (before the deflectors) is cheaper or "

@@ -49,6 +49,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numba as nb
 import numpy as np
 
 from flexparcel.consignments.build import (
@@ -60,6 +61,7 @@ from flexparcel.consignments.build import (
     default_packaging_content_law,
 )
 from flexparcel.consignments.snapshot import Snapshot, place_snapshot
+from flexparcel.contact.geometry import segment_segment
 from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.io.tomlfile import read_toml
@@ -102,6 +104,7 @@ __all__ = [
     "build_conveyor_model",
     "deflector_normal_forces",
     "deflector_crossings",
+    "deflector_edge_depths",
     "run_conveyor",
     "conveyor_options",
 ]
@@ -749,6 +752,84 @@ def deflector_crossings(
     return out
 
 
+@nb.njit(cache=True)
+def _deepest_edge_pair(frames, edges, segs, reach):
+    """Smallest distance [m] between any edge (E, 2) and any segment (S, 2) over the frames
+    (k, n, 3), and its frame; pairs whose midpoints are farther apart than their half
+    lengths plus ``reach`` are skipped (their distance exceeds ``reach``)."""
+    best = np.inf
+    where = -1
+    for k in range(frames.shape[0]):
+        x = frames[k]
+        for j in range(segs.shape[0]):
+            q0 = x[segs[j, 0]]
+            q1 = x[segs[j, 1]]
+            qm = 0.5 * (q0 + q1)
+            qh = 0.5 * math.sqrt(np.sum((q1 - q0) ** 2))
+            for e in range(edges.shape[0]):
+                p0 = x[edges[e, 0]]
+                p1 = x[edges[e, 1]]
+                pm = 0.5 * (p0 + p1)
+                ph = 0.5 * math.sqrt(np.sum((p1 - p0) ** 2))
+                if math.sqrt(np.sum((pm - qm) ** 2)) > ph + qh + reach:
+                    continue
+                d = segment_segment(p0, p1, q0, q1)[2]
+                if d < best:
+                    best = d
+                    where = k
+    return best, where
+
+
+def _cell_edges(cells, nodes: np.ndarray) -> np.ndarray:
+    """Element edges (E, 2), each once, sorted, of the ``cells`` (("quad", (q, 4)) or
+    ("triangle", (t, 3)) arrays) whose two nodes are both in ``nodes``."""
+    keep = np.zeros(max([int(c.max()) + 1 for _, c in cells if c.size] + [1]), dtype=bool)
+    keep[nodes[nodes < keep.size]] = True
+    out = [np.empty((0, 2), np.int64)]
+    for _, c in cells:
+        c = np.asarray(c, dtype=np.int64)
+        for a in range(c.shape[1]):
+            e = np.sort(np.column_stack([c[:, a], c[:, (a + 1) % c.shape[1]]]), axis=1)
+            out.append(e[keep[e].all(axis=1)])
+    return np.unique(np.vstack(out), axis=0)
+
+
+def deflector_edge_depths(cm: ConveyorModel, result: SimulationResult) -> dict[str, dict]:
+    """How deep each consignment's packaging element edges came into the deflectors' free
+    vertical edges (the tips near the centre line and the outer ends beyond the belt edge):
+    the largest ``depth = h - d`` over the recorded frames, with d the distance between an
+    element edge and an edge segment of the sheet's mid-plane, and h the contact thickness
+    (:meth:`~flexparcel.scenarios.conveyor.ConveyorParts.deflector_contact_thickness`).
+
+    A packaging edge pressed on a deflector edge penetrates its contact by a fraction of a
+    millimetre (the law's load over its stiffness). ``depth`` close to ``h`` means that the
+    element chords through the sheet's edge, what the edge-to-edge contact of
+    :func:`~flexparcel.scenarios.conveyor.add_deflector_contact` is there to prevent (a
+    result to distrust there). Between frames deeper approaches are missed. Placement name
+    -> {"depth_m", "thickness_m", "time" [s], "edge" ("tip 1", "end 2", ... by deflector,
+    upstream first)}; ``depth_m``, ``time`` and ``edge`` are None if no packaging edge came
+    within h of a deflector edge."""
+    t = np.asarray(result.time)
+    frames = np.ascontiguousarray(np.asarray(result.positions, dtype=np.float64))
+    parts = cm.parts
+    lines = []
+    for j, (tip, end) in enumerate(zip(parts.deflector_tips, parts.deflector_ends, strict=True)):
+        for kind, ids in (("tip", tip), ("end", end)):
+            ids = np.asarray(ids, dtype=np.int64)
+            lines.append((f"{kind} {j + 1}", np.column_stack([ids[:-1], ids[1:]])))
+    out: dict[str, dict] = {}
+    for name, c in cm.consignments.items():
+        h = parts.deflector_contact_thickness(c.contact_radius)
+        edges = _cell_edges(cm.model.cells, np.asarray(c.packaging, dtype=np.int64))
+        best = {"depth_m": None, "thickness_m": h, "time": None, "edge": None}
+        for label, segs in lines:
+            d, k = _deepest_edge_pair(frames, edges, segs, h)
+            if d < h and (best["depth_m"] is None or h - d > best["depth_m"]):
+                best.update(depth_m=float(h - d), time=float(t[k]), edge=label)
+        out[name] = best
+    return out
+
+
 @dataclass
 class ConveyorRun:
     """A finished conveyor run."""
@@ -781,6 +862,7 @@ class ConveyorRun:
             "dof_count": int(cm.model.dof_count),
             "consignment_contact_pairs": [list(p) for p in cm.consignment_pairs],
             "deflector_crossings": deflector_crossings(cm, res),
+            "deflector_edge_depths": deflector_edge_depths(cm, res),
             "layout": cm.layout.to_dict(),
             "friction": {
                 k: {part: [law.mu_static, law.mu_dynamic] for part, law in v.items()}
