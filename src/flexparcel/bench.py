@@ -218,6 +218,13 @@ def _conveyor(
         "newton_iterations_rejected": st["newton_iterations_rejected"],
         "factorizations": st.get("factorizations"),
         "phase_wall_s": {k: v for k, v in st["wall_s"].items() if k != "total"},
+        # grouped runs time each phase inside the worker processes and add them up, so with
+        # several workers busy at once the phases together exceed wall_s
+        "phase_wall_basis": (
+            "summed over the worker processes (worker-seconds)"
+            if st.get("groups")
+            else "wall time of the integrating process"
+        ),
         "workers": workers,
         "groups": st.get("groups"),
         "simulated_s_per_wall_s": t_end / run.wall_s,
