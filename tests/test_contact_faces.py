@@ -66,3 +66,23 @@ def test_surface_triangles_split_each_kept_quad_once():
     tris = surface_triangles(cells, keep)
     np.testing.assert_array_equal(tris, [[0, 1, 2], [0, 2, 3], [3, 2, 6]])
     assert surface_triangles([], keep).shape == (0, 3)
+
+
+def test_shell_edges_lists_each_kept_element_edge_once():
+    # the edges of line and edge-to-edge contact: every side of a quad or triangle whose two
+    # nodes are kept, a side shared by two cells once, solid cells skipped (the hexahedron's
+    # 0-6 would otherwise appear)
+    from flexparcel.model.mesh import shell_edges
+
+    cells = [
+        ("quad", np.array([[0, 1, 2, 3], [1, 4, 5, 2]])),
+        ("triangle", np.array([[3, 2, 6], [5, 7, 6]])),
+        ("hexahedron", np.array([[0, 6, 5, 3, 1, 2, 4, 7]])),
+    ]
+    keep = np.ones(8, dtype=bool)
+    keep[[4, 7]] = False
+    edges = shell_edges(cells, keep)
+    np.testing.assert_array_equal(
+        edges, [[0, 1], [0, 3], [1, 2], [2, 3], [2, 5], [2, 6], [3, 6], [5, 6]]
+    )
+    assert shell_edges([], keep).shape == (0, 2)

@@ -424,7 +424,7 @@ def test_packaging_edge_across_a_deflector_edge_is_held_edge_to_edge(edge, edge_
     plate = b.add_shell_mesh(pts, np.array([[0, 1, 3, 2]]), material=mat)
     if edge_contact:
         add_deflector_contact(b, parts, plate, law, shell_half_thickness=SHEET_T / 2)
-    else:  # the contacts of add_deflector_contact but edge-to-edge
+    else:  # the contacts of add_deflector_contact without the edge-to-edge ones
         b.add_face_contact(plate, parts.deflector_vertices[0], law, thickness=h)
         for line in (parts.deflector_tips[0], parts.deflector_ends[0]):
             b.add_edge_face_contact(line, plate, law, thickness=h, samples=5)

@@ -14,7 +14,7 @@ from flexparcel.contact.law import PACKED_SIZE
 from flexparcel.elements import shell
 from flexparcel.model.checks import finite_number
 from flexparcel.model.materials import ShellMaterial
-from flexparcel.model.mesh import quads_to_triangles, surface_triangles
+from flexparcel.model.mesh import quads_to_triangles, shell_edges, surface_triangles
 from flexparcel.model.rigid import PrescribedMotion, RoundedBox
 from flexparcel.model.schedule import Schedule
 
@@ -656,18 +656,13 @@ class ModelBuilder:
 
     def _shell_edges(self, name: str, node_ids) -> np.ndarray:
         """Shell edges (E, 2), sorted, whose two nodes are both in ``node_ids``."""
-        nodes = set(self._check_ids(name, node_ids).tolist())
-        edges = set()
-        for lst in self._cells.values():
-            for c in lst:
-                k = c.shape[1]
-                for a in range(k):
-                    for u, v in zip(c[:, a].tolist(), c[:, (a + 1) % k].tolist(), strict=True):
-                        if u in nodes and v in nodes:
-                            edges.add((min(u, v), max(u, v)))
-        if not edges:
+        keep = np.zeros(self._node_count, dtype=bool)
+        keep[self._check_ids(name, node_ids)] = True
+        cells = [(ctype, c) for ctype, lst in self._cells.items() for c in lst]
+        edges = shell_edges(cells, keep)
+        if not edges.size:
             raise ValueError(f"{name}: node_ids contain no shell edge")
-        return np.array(sorted(edges), dtype=np.int64)
+        return edges
 
     def add_self_contact(
         self, node_ids, law, *, thickness: float, schedule: Schedule | None = None

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["rectangle", "quads_to_triangles", "surface_triangles", "triangle_areas"]
+__all__ = ["rectangle", "quads_to_triangles", "surface_triangles", "shell_edges", "triangle_areas"]
 
 
 def rectangle(
@@ -66,6 +66,20 @@ def surface_triangles(cells, keep: np.ndarray) -> np.ndarray:
         c = c[keep[c].all(axis=1)]
         tris += [c[:, [0, 1, 2]], c[:, [0, 2, 3]]] if kind == "quad" else [c]
     return np.vstack(tris)
+
+
+def shell_edges(cells, keep: np.ndarray) -> np.ndarray:
+    """Element edges (E, 2) of the shell cells, each once as (low, high) node ids, in
+    lexicographic order, whose two nodes both have ``keep`` (bool, per node). ``cells`` as for
+    :func:`surface_triangles` (other kinds than quads and triangles are skipped)."""
+    edges = [np.zeros((0, 2), np.int64)]
+    for kind, conn in cells:
+        if kind not in ("quad", "triangle"):
+            continue
+        c = np.asarray(conn, dtype=np.int64)
+        e = np.sort(np.stack([c, np.roll(c, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+        edges.append(e[keep[e].all(axis=1)])
+    return np.unique(np.vstack(edges), axis=0)
 
 
 def triangle_areas(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:

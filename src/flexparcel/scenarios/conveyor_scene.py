@@ -67,6 +67,7 @@ from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.io.tomlfile import read_toml
 from flexparcel.model.builder import Model, ModelBuilder, State
 from flexparcel.model.checks import finite_number
+from flexparcel.model.mesh import shell_edges
 from flexparcel.scenarios.consignment_tests import consignment_options
 from flexparcel.scenarios.conveyor import (
     ConveyorParts,
@@ -780,20 +781,6 @@ def _deepest_edge_pair(frames, edges, segs, reach):
     return best, where
 
 
-def _cell_edges(cells, nodes: np.ndarray) -> np.ndarray:
-    """Element edges (E, 2), each once, sorted, of the ``cells`` (("quad", (q, 4)) or
-    ("triangle", (t, 3)) arrays) whose two nodes are both in ``nodes``."""
-    keep = np.zeros(max([int(c.max()) + 1 for _, c in cells if c.size] + [1]), dtype=bool)
-    keep[nodes[nodes < keep.size]] = True
-    out = [np.empty((0, 2), np.int64)]
-    for _, c in cells:
-        c = np.asarray(c, dtype=np.int64)
-        for a in range(c.shape[1]):
-            e = np.sort(np.column_stack([c[:, a], c[:, (a + 1) % c.shape[1]]]), axis=1)
-            out.append(e[keep[e].all(axis=1)])
-    return np.unique(np.vstack(out), axis=0)
-
-
 def deflector_edge_depths(cm: ConveyorModel, result: SimulationResult) -> dict[str, dict]:
     """How deep each consignment's packaging element edges came into the deflectors' free
     vertical edges (the tips near the centre line and the outer ends beyond the belt edge):
@@ -820,7 +807,9 @@ def deflector_edge_depths(cm: ConveyorModel, result: SimulationResult) -> dict[s
     out: dict[str, dict] = {}
     for name, c in cm.consignments.items():
         h = parts.deflector_contact_thickness(c.contact_radius)
-        edges = _cell_edges(cm.model.cells, np.asarray(c.packaging, dtype=np.int64))
+        keep = np.zeros(cm.model.node_count, dtype=bool)
+        keep[c.packaging] = True
+        edges = shell_edges(cm.model.cells, keep)
         best = {"depth_m": None, "thickness_m": h, "time": None, "edge": None}
         for label, segs in lines:
             d, k = _deepest_edge_pair(frames, edges, segs, h)
