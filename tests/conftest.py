@@ -4,15 +4,26 @@ import numpy as np
 import pytest
 
 import flexparcel as fp
+from flexparcel.data import VERIFICATION_DIR
 
-REFERENCE = Path(__file__).resolve().parents[1].parent / "shared" / "reference"
+REFERENCE = Path(__file__).resolve().parent / "data" / "reference"
 
 
-def reference_dir() -> Path:
-    """The shared reference data (../shared/reference next to the repository)."""
-    if not REFERENCE.is_dir():
-        pytest.skip(f"shared reference data not found at {REFERENCE}")
-    return REFERENCE
+def _required(path: Path) -> Path:
+    # Reference data ships with the repository: a missing file is a failure, never a skip.
+    if not path.is_file():
+        pytest.fail(f"reference data missing: {path}")
+    return path
+
+
+def reference_file(name: str) -> Path:
+    """A file of the paper's reference data in tests/data/reference (see its README.md)."""
+    return _required(REFERENCE / name)
+
+
+def verification_table(name: str) -> Path:
+    """A Sze 2004 table of the package data (flexparcel/data/verification, see its README.md)."""
+    return _required(VERIFICATION_DIR / name)
 
 
 def strip_model(

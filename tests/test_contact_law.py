@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from conftest import reference_dir
+from conftest import reference_file
 from flexparcel.contact import (
     DAMPING_INDENTATION,
     DAMPING_STEP,
@@ -362,7 +362,7 @@ def test_stick_model_limits_creep_and_breaks_loose():
 
 
 def test_paper_units_round_trip_table6():
-    cal = tomllib.loads((reference_dir() / "calibration-kpbw.toml").read_text())
+    cal = tomllib.loads(reference_file("calibration-kpbw.toml").read_text())
     table6 = cal["result"]["parameters"]
     c_mm, d_mm = (
         table6["contact_stiffness_packaging_ground"],

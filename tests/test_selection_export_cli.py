@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import reference_file
 from flexparcel.cli import main
 from flexparcel.selection import (
     centroid_table,
@@ -25,7 +26,7 @@ from flexparcel.selection.export import (
     write_consignment_toml,
 )
 
-# The paper's Table 2 (reference/consignments.csv) converted from cm to mm.
+# The paper's Table 2 (tests/data/reference/consignments.csv) converted from cm to mm.
 TABLE2 = [
     ConsignmentSpec("KPBW", "kraft_paper_bubble_wrap", 275, 200, 20, "rigid", 165, 125, 20, 140,
                     False, 1),
@@ -33,6 +34,39 @@ TABLE2 = [
     ConsignmentSpec("KP", "kraft_paper", 320, 250, 30, "rigid", 310, 225, 30, 380, True, 4),
     ConsignmentSpec("BW", "bubble_wrap", 200, 150, 20, "rigid", 165, 125, 20, 80, False, 6),
 ]  # fmt: skip
+
+
+_TABLE2_PACKAGING = {
+    "KPBW": "kraft_paper_bubble_wrap",
+    "PB": "polybag",
+    "KP": "kraft_paper",
+    "BW": "bubble_wrap",
+}
+
+
+def test_table2_matches_reference_csv_and_presets():
+    # The embedded Table 2 (here and in the consignment presets) against the reference table
+    # (cm and g as printed; the packaging material follows from the id).
+    from flexparcel.consignments.build import PRESETS
+
+    text = reference_file("consignments.csv").read_text(encoding="utf-8")
+    rows = list(csv.DictReader(line for line in text.splitlines() if not line.startswith("#")))
+    cm = ("length", "width", "height", "content_length", "content_width", "content_height")
+    specs = [
+        ConsignmentSpec(
+            r["id"],
+            _TABLE2_PACKAGING[r["id"]],
+            *(10.0 * float(r[f"{k}_cm"]) for k in cm[:3]),
+            r["content_kind"],
+            *(10.0 * float(r[f"{k}_cm"]) for k in cm[3:]),
+            float(r["mass_g"]),
+            content_fixed_to_packaging=r["content_fixed_to_packaging"] == "true",
+            based_on_cluster=int(r["based_on_cluster"]),
+        )
+        for r in rows
+    ]
+    assert specs == TABLE2
+    assert [PRESETS[s.id] for s in specs] == specs
 
 
 @pytest.mark.parametrize("spec", TABLE2, ids=lambda s: s.id)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import reference_file
 from flexparcel.selection import (
     PAPER_TABLE1,
     SurveyError,
@@ -26,7 +27,6 @@ HEADER = (
     "length_cm,width_cm,height_cm,mass_g"
 )
 GOOD = "A1,polybag,flat,false,false,2,4,29,22,2,180"
-REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference"
 
 
 def _write(tmp_path: Path, *lines: str, name: str = "survey.csv") -> Path:
@@ -165,10 +165,9 @@ def test_infer_schema_kinds(tmp_path):
     assert "shape" not in read_survey(path, exclude=["shape"]).schema.names
 
 
-@pytest.mark.skipif(not (REFERENCE / "cluster-centroids.csv").exists(), reason="no reference")
 def test_reference_table1_matches_embedded_copy():
     schema = SurveySchema(synthetic_schema().columns, id_column="cluster")
-    s = read_survey(REFERENCE / "cluster-centroids.csv", schema)
+    s = read_survey(reference_file("cluster-centroids.csv"), schema)
     assert s.ids == tuple(str(r["cluster"]) for r in PAPER_TABLE1)
     for name in schema.names:
         assert s.column_values(name) == [r[name] for r in PAPER_TABLE1], name

@@ -1,6 +1,6 @@
 """Verification of the co-rotational shell against closed forms and published benchmarks.
 
-References: ../shared/reference/verification/README.md (Sze, Liu & Lo 2004; Euler-Bernoulli
+References: src/flexparcel/data/verification/README.md (Sze, Liu & Lo 2004; Euler-Bernoulli
 cantilever frequencies; Leissa 1973).
 """
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import flexparcel as fp
-from conftest import reference_dir, strip_model
+from conftest import strip_model, verification_table
 from flexparcel import verification
 
 
@@ -74,9 +74,7 @@ def test_sze_31_cantilever_end_shear_all_load_levels():
     # Tolerance: the table is printed to 3 decimals (+-5e-4 absolute) and is itself within 0.1 %
     # of the elastica; our flat facets add a chord error ~ (dtheta)^2 / 24 with dtheta the tip
     # rotation / 16 (< 1.4 rad / 16, i.e. < 0.03 %). Allowed: 0.5 % of the value + 1e-3 absolute.
-    r = verification.sze_end_shear(
-        reference_dir() / "verification/sze2004_cantilever_end_shear.csv"
-    )
+    r = verification.sze_end_shear(verification_table("sze2004_cantilever_end_shear.csv"))
     np.testing.assert_allclose(r["load_fraction"], np.arange(1, 21) / 20, atol=1e-12)
     assert np.all(np.abs(r["minus_u"] - r["ref_minus_u"]) <= 5e-3 * r["ref_minus_u"] + 1e-3)
     assert np.all(np.abs(r["w"] - r["ref_w"]) <= 5e-3 * r["ref_w"] + 1e-3)
@@ -93,7 +91,7 @@ def test_sze_32_end_moment_rolls_into_full_circle():
     assert r["closed_circle_err_over_L"] <= 1e-6
     # the published table agrees with the exact formula it was derived from
     ref = np.loadtxt(
-        reference_dir() / "verification/sze2004_cantilever_end_moment.csv",
+        verification_table("sze2004_cantilever_end_moment.csv"),
         delimiter=",",
         skiprows=1,
     )

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import flexparcel as fp
-from conftest import reference_dir
+from conftest import verification_table
 from flexparcel import verification
 from flexparcel.scenarios.sheet_swing import SheetSwing, sheet_swing_model
 
@@ -33,9 +33,7 @@ def test_sze_31_finer_mesh_approaches_the_elastica():
     # 32 elements along the strip: the facet (chord) error of the 16x1 mesh drops by ~4, so the
     # tip deflection must match the published values (elastica within 0.1 %) to 0.3 % + the
     # table's rounding 5e-4 at all 20 load levels.
-    r = verification.sze_end_shear(
-        reference_dir() / "verification/sze2004_cantilever_end_shear.csv", nx=32
-    )
+    r = verification.sze_end_shear(verification_table("sze2004_cantilever_end_shear.csv"), nx=32)
     assert np.all(np.abs(r["w"] - r["ref_w"]) <= 3e-3 * r["ref_w"] + 5e-4)
 
 

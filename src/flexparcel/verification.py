@@ -2,8 +2,9 @@
 
 Each case returns a dict with the computed values, the reference and the error, so the tests
 (which assert tolerances argued from the discretisation) and ``flexparcel verify`` (which
-reports the figures) share one implementation. References: ``shared/reference/verification``
-(Sze, Liu & Lo 2004, FEAD 40:1551; Euler-Bernoulli cantilever; Leissa 1973).
+reports the figures) share one implementation. References: the package data folder
+:data:`REFERENCE_DIR` (``flexparcel/data/verification``, its README names the sources: Sze, Liu &
+Lo 2004, FEAD 40:1551; Euler-Bernoulli cantilever; Leissa 1973).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flexparcel.data import VERIFICATION_DIR
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.static import solve_static
 from flexparcel.model import mesh
@@ -19,6 +21,7 @@ from flexparcel.model.builder import Model, ModelBuilder
 from flexparcel.model.materials import ShellMaterial
 
 __all__ = [
+    "REFERENCE_DIR",
     "sze_end_shear",
     "sze_end_moment",
     "strip_frequencies",
@@ -26,6 +29,9 @@ __all__ = [
     "natural_frequencies",
     "run_all",
 ]
+
+REFERENCE_DIR: Path = VERIFICATION_DIR
+"""The packaged Sze 2004 tables (``sze2004_cantilever_end_shear.csv``, ``..._end_moment.csv``)."""
 
 
 def _strip(length, width, thickness, nx, ny=1, *, e=1.2e6, nu=0.0, rho=1.0):
@@ -133,8 +139,9 @@ def plate_frequencies(n: int = 12) -> dict:
     return {"lambda": lam, "reference": ref, "rel_err": lam / ref - 1.0}
 
 
-def run_all(reference_dir: str | Path) -> dict:
-    """All cases, summarised as max errors (JSON-ready)."""
+def run_all(reference_dir: str | Path = REFERENCE_DIR) -> dict:
+    """All cases, summarised as max errors (JSON-ready); ``reference_dir`` holds the Sze 2004
+    tables (default: the packaged copy)."""
     ref = Path(reference_dir)
     s31 = sze_end_shear(ref / "sze2004_cantilever_end_shear.csv")
     s32 = sze_end_moment()

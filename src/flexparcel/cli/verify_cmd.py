@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from flexparcel.data import VERIFICATION_DIR
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -17,8 +19,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--reference",
         type=Path,
-        default=Path("../shared/reference/verification"),
-        help="folder with the Sze 2004 CSV tables",
+        default=VERIFICATION_DIR,
+        help="folder with the Sze 2004 CSV tables (default: the copy shipped with the package)",
     )
     p.add_argument("--out", type=Path, default=None, help="also write the JSON here")
     p.set_defaults(func=run)
