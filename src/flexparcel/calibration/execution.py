@@ -75,7 +75,7 @@ def execute_run(
     Returns ``{"ok": True, "responses": {...}, ...}`` or ``{"ok": False, "error": text, ...}``,
     with ``wall_s`` [s], ``worker`` (``host:pid``) and ``code_version``.
     """
-    from flexparcel import __version__
+    from flexparcel._version import __version__
 
     t0 = time.perf_counter()
     out: dict = {"worker": worker_label()}

@@ -256,7 +256,7 @@ def write_report(study: Study) -> Path:
 
     matplotlib.use("Agg", force=False)
 
-    from flexparcel import __version__
+    from flexparcel._version import __version__
 
     c = study.config
     store = study.store

@@ -180,7 +180,7 @@ class StudyStore:
     # -- setup -------------------------------------------------------------------------------
 
     def _create(self) -> None:
-        from flexparcel import __version__
+        from flexparcel._version import __version__
 
         with self.transaction() as c:
             for stmt in filter(None, (s.strip() for s in _SCHEMA.split(";"))):

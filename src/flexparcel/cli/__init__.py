@@ -27,7 +27,7 @@ _COMMAND_MODULES = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from flexparcel import __version__
+    from flexparcel._version import __version__
 
     parser = argparse.ArgumentParser(
         prog="flexparcel",
