@@ -1,20 +1,37 @@
-"""Consignments: the paper's four presets and user-defined ones, their assembly and snapshots."""
+"""Consignments: the paper's four presets and user-defined ones, their assembly and snapshots.
 
-from flexparcel.consignments.build import (
-    PRESETS,
-    Consignment,
-    ConsignmentBuild,
-    add_consignment,
-    preset,
-)
-from flexparcel.consignments.materials import PACKAGING_PRESETS, PackagingMaterial
+The names below are loaded lazily, on first access (PEP 562): the builders need the
+finite-element code, while :mod:`flexparcel.consignments.spec` (the consignment specification and
+its TOML file, lengths in mm and masses in g) is importable without it.
+"""
 
-__all__ = [
-    "PRESETS",
-    "PACKAGING_PRESETS",
-    "PackagingMaterial",
-    "Consignment",
-    "ConsignmentBuild",
-    "add_consignment",
-    "preset",
-]
+from __future__ import annotations
+
+import importlib
+
+# Public name -> module that defines it.
+_LAZY: dict[str, str] = {
+    "PRESETS": "flexparcel.consignments.build",
+    "PACKAGING_PRESETS": "flexparcel.consignments.materials",
+    "PackagingMaterial": "flexparcel.consignments.materials",
+    "Consignment": "flexparcel.consignments.build",
+    "ConsignmentBuild": "flexparcel.consignments.build",
+    "ConsignmentSpec": "flexparcel.consignments.spec",
+    "add_consignment": "flexparcel.consignments.build",
+    "preset": "flexparcel.consignments.build",
+}
+
+__all__ = list(_LAZY)
+
+
+def __getattr__(name: str):
+    """Import the public name ``name`` from its module on first use and keep it here."""
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -33,6 +33,7 @@ from flexparcel.consignments.materials import (
     PackagingMaterial,
     packaging_material,
 )
+from flexparcel.consignments.spec import ConsignmentSpec
 from flexparcel.contact.law import ContactLaw
 from flexparcel.elements.solid import SolidMaterial, solid_reference_data
 from flexparcel.model.builder import ModelBuilder
@@ -40,7 +41,6 @@ from flexparcel.model.materials import ShellMaterial
 from flexparcel.model.rigid import RoundedBox
 from flexparcel.model.schedule import Schedule
 from flexparcel.scenarios.envelope import two_layer_envelope
-from flexparcel.selection.export import ConsignmentSpec
 
 __all__ = [
     "PRESETS",

@@ -1,6 +1,6 @@
 """User-defined consignments from a TOML file, and the lookup of a consignment by name or path.
 
-The file is the consignment TOML of :func:`flexparcel.selection.export.read_consignment_toml`
+The file is the consignment TOML of :func:`flexparcel.consignments.spec.read_consignment_toml`
 (``format_version = 1``, flat keys, lengths in mm, mass in g) with two optional additions::
 
     format_version = 1
@@ -43,12 +43,12 @@ from flexparcel.consignments.build import (
     preset,
 )
 from flexparcel.consignments.materials import PackagingMaterial, packaging_material
-from flexparcel.io.tomlfile import read_toml
-from flexparcel.selection.export import (
+from flexparcel.consignments.spec import (
     CONSIGNMENT_FORMAT_VERSION,
     ConsignmentFileError,
     ConsignmentSpec,
 )
+from flexparcel.io.tomlfile import read_toml
 
 __all__ = [
     "MATERIAL_KEYS",
