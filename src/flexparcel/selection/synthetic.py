@@ -1,9 +1,10 @@
 """Synthetic consignment surveys seeded from the paper's Table 1 centroids.
 
 The real survey (657 consignments from an Austrian distribution centre, Stadlthanner et al.) is
-not public; only the six HDBSCAN centroids are (Table 1 of the paper, copied below and in
-``reference/cluster-centroids.csv``). :func:`make_synthetic_survey` scatters consignments around
-given centroids, so tests and examples can check that clustering recovers known groups.
+not public; only the six HDBSCAN centroids are (Table 1 of the paper, copied below; the tests
+check the copy against ``tests/data/reference/cluster-centroids.csv``).
+:func:`make_synthetic_survey` scatters consignments around given centroids, so tests and
+examples can check that clustering recovers known groups.
 
 Scatter model, per cluster member: numeric columns log-normal around the centroid (relative
 spread :data:`DEFAULT_SPREAD`), rounded to 0.5 cm (length, width), 0.1 cm (height) and 5 g, and
