@@ -220,6 +220,24 @@ def test_toolkits_do_not_load_the_fe_stack_at_run_time():
     assert not hit, f"importing the toolkits loaded {hit}"
 
 
+def test_public_names_load_on_first_use():
+    # ``import flexparcel`` loads no FE code; every public name then resolves, and a submodule
+    # of the same name (flexparcel.simulate) does not shadow the public function.
+    code = (
+        "import sys\n"
+        "import flexparcel as fp\n"
+        "assert 'flexparcel.model' not in sys.modules and 'numba' not in sys.modules\n"
+        "import flexparcel.simulate\n"
+        "assert callable(fp.simulate) and fp.simulate.__name__ == 'simulate'\n"
+        "missing = [n for n in fp.__all__ if getattr(fp, n, None) is None]\n"
+        "assert not missing, missing\n"
+        "assert set(fp.__all__) <= set(dir(fp))\n"
+        "from flexparcel import ModelBuilder, mesh\n"
+        "assert ModelBuilder is fp.ModelBuilder and mesh.__name__ == 'flexparcel.model.mesh'\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
+
+
 def test_toolkits_import_no_fe_code():
     # Directly or through other modules of the package (io.checkpoint -> model, say); the
     # calibration simulators that run the FE are found by name at call time instead.

@@ -80,6 +80,16 @@ def test_sze_31_cantilever_end_shear_all_load_levels():
     assert np.all(np.abs(r["w"] - r["ref_w"]) <= 5e-3 * r["ref_w"] + 1e-3)
 
 
+def test_verify_command_defaults_to_the_packaged_tables():
+    from flexparcel.cli import build_parser
+    from flexparcel.data import VERIFICATION_DIR
+
+    args = build_parser().parse_args(["verify"])
+    assert args.reference == VERIFICATION_DIR == verification.REFERENCE_DIR
+    for name in ("sze2004_cantilever_end_shear.csv", "sze2004_cantilever_end_moment.csv"):
+        assert verification_table(name).parent == VERIFICATION_DIR
+
+
 def test_sze_32_end_moment_rolls_into_full_circle():
     # Sze et al. (2004) case 3.2: follower tip moment, exact theta = 2 pi M/Mmax, R = L/theta,
     # -u = L - R sin(theta), w = R (1 - cos(theta)); at M = Mmax the strip is a full circle.
