@@ -248,9 +248,10 @@ def test_run_rejects_bad_input_before_assembling(tmp_path, capsys, assembled):
 
 
 def test_run_command_lists_the_jobs_tests():
-    from flexparcel.cli import consignment_jobs, run_cmd
+    from flexparcel.cli import run_cmd
+    from flexparcel.scenarios.registry import scenario_names
 
-    assert run_cmd.TESTS == consignment_jobs.TESTS
+    assert set(run_cmd.SCENARIOS) <= set(scenario_names())
 
 
 # --------------------------------------------------------------------------------------------
@@ -271,8 +272,8 @@ def _fake_run(x_free: np.ndarray, first: float, second: float):
 
 
 def test_swing_curve_marks_sit_on_the_reported_peaks():
-    from flexparcel.cli.consignment_jobs import swing_curve
     from flexparcel.scenarios.consignment_tests import swing_responses
+    from flexparcel.scenarios.swing import swing_curve
 
     t = np.linspace(0.0, 1.4, 281)
     # a damped pendulum-like free end: starts 0.25 m beyond the clamp edge (at 0.02 m)

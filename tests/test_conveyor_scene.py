@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from contact_views import plane_points
 from flexparcel.cli import main
 from flexparcel.consignments.build import ConsignmentBuild
 from flexparcel.consignments.snapshot import SnapshotError, load_snapshot, place_snapshot
@@ -260,21 +261,22 @@ def test_contents_meet_the_belt_once_through_their_packaging():
     snaps = {k: load_snapshot(PAPER_SNAPSHOTS / f"{k}.npz") for k in ("KPBW", "PB")}
     cm = build_conveyor_model(snaps, default_layout({k: s.build for k, s in snaps.items()}))
     m = cm.model
-    on_belt = m.cp_plane == cm.parts.belt_plane
+    cp = plane_points(m)
+    on_belt = cp.plane == cm.parts.belt_plane
     pb, kpbw = cm.consignments["PB"], cm.consignments["KPBW"]
-    content = on_belt & np.isin(m.cp_node, pb.content_nodes)
-    film = on_belt & np.isin(m.cp_node, pb.packaging)
-    assert sorted(m.cp_node[content]) == sorted(pb.content_nodes)
-    assert np.allclose(m.cp_radius[content], pb.contact_radius)
+    content = on_belt & np.isin(cp.node, pb.content_nodes)
+    film = on_belt & np.isin(cp.node, pb.packaging)
+    assert sorted(cp.node[content]) == sorted(pb.content_nodes)
+    assert np.allclose(cp.radius[content], pb.contact_radius)
     assert pb.contact_radius == pytest.approx(0.03e-3)  # PB's 0.06 mm film
-    assert set(m.cp_law[content]) == set(m.cp_law[film]) and len(set(m.cp_law[film])) == 1
-    box = on_belt & (m.cp_node == kpbw.content_body)
-    box_film = on_belt & np.isin(m.cp_node, kpbw.packaging)
+    assert set(cp.law[content]) == set(cp.law[film]) and len(set(cp.law[film])) == 1
+    box = on_belt & (cp.node == kpbw.content_body)
+    box_film = on_belt & np.isin(cp.node, kpbw.packaging)
     i = int(np.flatnonzero(m.rigid_nodes == kpbw.content_body)[0])
-    assert box.sum() == 8 and np.allclose(m.cp_radius[box], m.rigid_radius[i])
-    corners = np.abs(m.cp_offset[box])  # the inner box's corners in the box's frame
+    assert box.sum() == 8 and np.allclose(cp.radius[box], m.rigid_radius[i])
+    corners = np.abs(cp.offset[box])  # the inner box's corners in the box's frame
     assert np.allclose(corners, m.rigid_half_inner[i])
-    assert set(m.cp_law[box]) == set(m.cp_law[box_film]) and len(set(m.cp_law[box_film])) == 1
+    assert set(cp.law[box]) == set(cp.law[box_film]) and len(set(cp.law[box_film])) == 1
     # placed on the belt, each content rests on its packaging, clear of its backstop
     z = cm.state0.positions[pb.content_nodes, 2]
     assert z.min() > pb.contact_radius
@@ -462,7 +464,7 @@ def test_conveyor_cli_reuses_cached_snapshots(snapshot_dir, tmp_path, capsys):
     cache = out / "snapshots" / "consignment_small_20mm"
     cache.mkdir(parents=True)
     shutil.copy(snapshot_dir / "consignment_small" / "snapshot.npz", cache / "snapshot.npz")
-    from flexparcel.cli.conveyor_job import snapshot_for
+    from flexparcel.cli.snapshots import snapshot_for
 
     build = load_consignment_file(EXAMPLE)
     snap, source = snapshot_for("consignment_small", build, out, log=lambda m: None)

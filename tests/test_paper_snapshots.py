@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexparcel.cli.consignment_jobs import check_snapshot_matches
+from flexparcel.builder import ModelBuilder
+from flexparcel.cli.snapshots import check_snapshot_matches
 from flexparcel.consignments.assembly import content_outside_packaging
 from flexparcel.consignments.build import (
     ConsignmentBuild,
@@ -16,7 +17,6 @@ from flexparcel.consignments.build import (
     add_consignment,
 )
 from flexparcel.consignments.snapshot import load_snapshot
-from flexparcel.model.builder import ModelBuilder
 from flexparcel.scenarios.conveyor_scene import build_conveyor_model, default_layout
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "paper-snapshots-25mm"

@@ -50,7 +50,7 @@ def _sheet_swing(quick: bool = False, progress=None) -> dict:
         "wall_s": wall,
         "dof_count": model.dof_count,
         "node_count": model.node_count,
-        "triangle_count": int(model.triangles.shape[0]),
+        "triangle_count": sum(len(g.triangles) for g in model.element_groups if g.kind == "shell"),
         "steps": st["steps"],
         "rejected_steps": st["rejected_steps"],
         "newton_iterations": st["newton_iterations"],
@@ -131,7 +131,7 @@ def _conveyor_snapshots(
 ) -> tuple[dict, float]:
     """Snapshots of ``consignments`` (presets or .toml files): from ``snapshot_dir`` or
     assembled (cached under ``work``); returns them and the assembly wall time [s]."""
-    from flexparcel.cli.conveyor_job import snapshot_for
+    from flexparcel.cli.snapshots import snapshot_for
     from flexparcel.consignments.userfile import resolve_consignment
 
     size = None if element_size_mm is None else element_size_mm * 1e-3
@@ -166,32 +166,41 @@ def _conveyor(
     writes what ``flexparcel run conveyor`` writes (responses, snapshots picture, animation,
     trajectories, ParaView) to ``work/run``, so the benchmarked run is the one people look
     at; the files' time is not in ``wall_s``. ``content_stiffness_n_per_mm``: the
-    packaging-content contact (:func:`~flexparcel.cli.conveyor_job.content_law_for`; None:
-    Table 6's). ``workers``: as ``run conveyor --workers`` (0: one model)."""
-    from flexparcel.cli.conveyor_job import content_law_for, conveyor_job
-    from flexparcel.scenarios.conveyor_scene import default_layout
+    packaging-content contact (the conveyor scenario's ``content_stiffness``; None: Table
+    6's). ``workers``: as ``run conveyor --workers`` (0: one model). Run through the
+    scenario registry's ``conveyor``."""
+    from flexparcel.cli.progress import ProgressLine
+    from flexparcel.io.checkpoint import CheckpointError, load_checkpoint
+    from flexparcel.scenarios.conveyor_scenario import CHECKPOINT_FILE
+    from flexparcel.scenarios.registry import get_scenario
+    from flexparcel.viz.scenario_pictures import pictures_for
 
     t_end = (0.005 if quick else 2.0) if t_end is None else float(t_end)
-    law = content_law_for(content_stiffness_n_per_mm)  # a bad value fails before any assembly
-    snaps, assembly_wall = _conveyor_snapshots(consignments, element_size_mm, snapshot_dir,
-                                               Path(work))  # fmt: skip
-    layout = default_layout({k: s.build for k, s in snaps.items()}, speed=start_speed)
-    shown = progress is not None and getattr(progress, "enabled", True)
     # an interrupted benchmark resumes from its checkpoint (its wall time counts), a finished
     # one is measured again
-    from flexparcel.cli.conveyor_job import CHECKPOINT_FILE
-    from flexparcel.io.checkpoint import CheckpointError, load_checkpoint
-
     ckpt = Path(work) / "run" / CHECKPOINT_FILE
+    scenario = get_scenario("conveyor", workers=workers, checkpoint=ckpt)
+    # bad values fail before any assembly
+    params = scenario.resolve({"start_speed": start_speed,
+                               "content_stiffness": content_stiffness_n_per_mm})  # fmt: skip
+    snaps, assembly_wall = _conveyor_snapshots(consignments, element_size_mm, snapshot_dir,
+                                               Path(work))  # fmt: skip
+    shown = progress is not None and getattr(progress, "enabled", True)
     try:
         resumed = not load_checkpoint(ckpt).header["complete"]
     except (FileNotFoundError, CheckpointError):  # none, or unreadable: start over
         resumed = False
     if not resumed:
         ckpt.unlink(missing_ok=True)
-    run, summary, files = conveyor_job(snaps, layout, Path(work) / "run", t_end=t_end,
-                                       progress=shown, content_law=law,
-                                       workers=workers)  # fmt: skip
+    ckpt.parent.mkdir(parents=True, exist_ok=True)
+    bar = ProgressLine(f"conveyor ({len(snaps)} consignments)", enabled=shown)
+    try:
+        result = scenario.run(snaps, params, t_end=t_end, progress=bar)
+    finally:
+        bar.done()
+    files = scenario.write(result, Path(work) / "run", pictures=pictures_for("conveyor"))
+    run = result.record
+    summary = scenario.summary(result)
     st = run.result.stats
     recurdyn_s = RECURDYN_CONVEYOR_WALL_S * t_end / 2.0
     return {
@@ -234,7 +243,7 @@ def _conveyor(
         "responses": summary["consignments"],
         "deflector_crossings": summary["deflector_crossings"],
         "deflector_edge_depths": summary["deflector_edge_depths"],
-        "files": files,
+        "files": {k: str(v) for k, v in files.items()},
         "note": "RecurDyn: 24 h on 4 cores for 2 s; recurdyn_wall_s is scaled to simulated_s. "
         "A short run extrapolates badly: the start (before the deflectors) is cheaper or "
         "dearer than the rest.",
@@ -257,7 +266,7 @@ def conveyor_scaling(
     neighbours that can meet (``pair_reach`` = belt speed * t_end + 5 cm). Returns a table
     (``rows``) and the least-squares exponent of wall ~ count**p (1 = linear). ``workers``:
     as ``run conveyor --workers`` (0: one model)."""
-    from flexparcel.cli.conveyor_job import group_settings
+    from flexparcel.scenarios.conveyor_scenario import group_settings
     from flexparcel.scenarios.conveyor_scene import run_conveyor, throughput_layout
 
     rows = []
@@ -372,10 +381,10 @@ def _consignment_assembly(
     (presets or .toml files) at its own mesh size (paper: 10 mm, 5 mm for BW), or at
     ``element_size_mm`` (``quick``: 25 mm). A consignment that fails to assemble is reported
     with its error, not dropped. The paper gives no RecurDyn time for the assembly."""
+    from flexparcel.builder import ModelBuilder
     from flexparcel.consignments.assembly import AssemblyError, assemble
     from flexparcel.consignments.build import add_consignment
     from flexparcel.consignments.userfile import resolve_consignment
-    from flexparcel.model.builder import ModelBuilder
 
     if element_size_mm is None and quick:
         element_size_mm = 25.0
@@ -429,7 +438,8 @@ def _kpbw_tests(
     from flexparcel.consignments.assembly import assemble
     from flexparcel.consignments.snapshot import load_snapshot
     from flexparcel.consignments.userfile import resolve_consignment
-    from flexparcel.scenarios.consignment_tests import TABLE6_VALUES, drop_test, swing_test
+    from flexparcel.scenarios.consignment_tests import TABLE6_VALUES
+    from flexparcel.scenarios.registry import get_scenario
 
     if element_size_mm is None and quick:
         element_size_mm = 25.0
@@ -446,12 +456,9 @@ def _kpbw_tests(
     )
     rows = []
     for test in recurdyn:
-        p = dict(TABLE6_VALUES)
-        if test == "swing":
-            run = swing_test(snap, p, t_end=t_end[test], progress=progress)
-        else:
-            run = drop_test(snap, test.split("-")[1], p, t_end=t_end[test], progress=progress)
-        summ = run.summary()
+        scenario = get_scenario(test)
+        result = scenario.run(snap, dict(TABLE6_VALUES), t_end=t_end[test], progress=progress)
+        summ = scenario.summary(result)
         rd = recurdyn[test][0] * t_end[test] / recurdyn[test][1]
         rows.append({**{k: v for k, v in summ.items() if k not in ("parameters",
                      "parameter_units")}, "recurdyn_wall_s": rd,

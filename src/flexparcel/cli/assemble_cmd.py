@@ -43,7 +43,7 @@ def element_size_m(mm: float | None) -> float | None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from flexparcel.cli.consignment_jobs import UNSETTLED_FILES, assemble_job
+    from flexparcel.cli.snapshots import UNSETTLED_FILES, assemble_job
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
 

@@ -112,13 +112,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--t-end must be in (0, 10] s, got {args.t_end:g}")
     if args.element_size is not None and not 1.0 <= args.element_size <= 100.0:
         raise ValueError(f"--element-size must be in [1, 100] mm, got {args.element_size:g}")
-    if args.content_stiffness is not None:
-        from flexparcel.cli.conveyor_job import content_law_for
+    from flexparcel.scenarios.conveyor_scenario import content_law_for, group_settings
 
-        content_law_for(args.content_stiffness)  # its range, before any run
-    from flexparcel.cli.conveyor_job import group_settings
-
-    group_settings(args.workers)  # its range, before any run
+    content_law_for(args.content_stiffness, "--content-stiffness")  # before any run
+    group_settings(args.workers, "--workers")
     work = Path(args.out).parent / "bench-conveyor"
     common = {"t_end": args.t_end, "snapshot_dir": args.snapshot_dir, "work": work,
               "workers": args.workers}  # fmt: skip

@@ -75,12 +75,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from flexparcel.cli.consignment_jobs import TESTS, assemble_job, run_job
+    from flexparcel.cli.run_cmd import TESTS, format_responses, run_and_write
+    from flexparcel.cli.snapshots import assemble_job
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
     from flexparcel.integrate.errors import ConvergenceError
     from flexparcel.io.atomic import write_atomic
     from flexparcel.scenarios.consignment_tests import TABLE6_VALUES
+    from flexparcel.scenarios.registry import get_scenario
 
     mode = QUICK if args.quick else FULL
     size_mm = args.element_size if args.element_size is not None else mode["element_size_mm"]
@@ -98,14 +100,14 @@ def run(args: argparse.Namespace) -> int:
     print(f"assembled in {snap.info['wall_s']:.1f} s")
     results: dict[str, dict | str] = {}
     for test in TESTS:
+        options = {} if test == "swing" else {"drop_height": mode["drop_height"]}
+        scenario = get_scenario(test, **options)
         try:
-            run_, summary, _ = run_job(
-                test, snap, dict(TABLE6_VALUES), out / test, t_end=mode["t_end"][test],
-                drop_height=mode["drop_height"], progress=progress,
-            )  # fmt: skip
-            results[test] = summary
-            shown = ", ".join(f"{k} = {v:.2f}" for k, v in run_.responses.items())
-            print(f"{test}: {shown}; {summary['wall_s']:.1f} s wall")
+            result, _ = run_and_write(scenario, snap, dict(TABLE6_VALUES), out / test,
+                                      t_end=mode["t_end"][test], progress=progress)  # fmt: skip
+            results[test] = scenario.summary(result)
+            shown = format_responses(scenario.responses(result))
+            print(f"{test}: {shown}; {result.wall_s:.1f} s wall")
         except ConvergenceError as exc:  # report it and go on with the other tests
             results[test] = str(exc)
             print(f"flexparcel demo: {test} failed: {exc}", file=sys.stderr)

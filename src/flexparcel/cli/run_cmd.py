@@ -1,6 +1,8 @@
-"""``flexparcel run``: one of the paper's tests (swing, vertical or horizontal drop) on a
-consignment, from its snapshot (assembled first when none is given), or the conveyor scene
-with several consignments (:mod:`flexparcel.cli.conveyor_job`)."""
+"""``flexparcel run``: a scenario of :mod:`flexparcel.scenarios.registry` (the paper's swing,
+vertical or horizontal drop test, or a third-party one) on a consignment, from its snapshot
+(assembled first when none is given), or the conveyor scene with several consignments. The
+scenarios do the work and write the files; this module turns options into their parameters
+and settings, finds the snapshots and prints what came out."""
 
 from __future__ import annotations
 
@@ -9,10 +11,15 @@ from pathlib import Path
 
 from flexparcel.cli.assemble_cmd import CONSIGNMENT_HELP, element_size_m
 
-__all__ = ["register", "run"]
+__all__ = ["register", "run", "run_and_write", "format_responses", "parse_consignment_list"]
 
-TESTS = ("swing", "drop-vertical", "drop-horizontal")  # as cli.consignment_jobs.TESTS
+TESTS = ("swing", "drop-vertical", "drop-horizontal")
+"""The built-in scenarios on one consignment (any other registered one runs the same way)."""
 SCENARIOS = (*TESTS, "conveyor")
+_CONVEYOR_FLAGS = {"belt_speed": "--belt-speed", "deflector_angle": "--deflector-angle",
+                   "start_speed": "--start-speed", "pair_reach": "--pair-reach",
+                   "content_stiffness": "--content-stiffness"}  # fmt: skip
+"""Conveyor scenario parameter -> the option that sets it."""
 _CONVEYOR_ONLY = ("consignments", "belt_speed", "deflector_angle", "scene", "snapshot_dir",
                   "pair_reach", "start_speed", "preview", "content_stiffness",
                   "workers")  # fmt: skip
@@ -36,7 +43,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "run saves DIR/checkpoint.npz about once a minute: the same command resumes an "
         "interrupted run from it.",
     )
-    p.add_argument("test", choices=SCENARIOS, help="which test or scenario")
+    # no argparse choices: the registry (with third-party entry points) is read when running,
+    # so that --help imports no scenario
+    names = ", ".join(SCENARIOS)
+    p.add_argument("test", metavar="SCENARIO",
+                   help=f"which test or scenario: {names}, or a registered one")  # fmt: skip
     p.add_argument(
         "--consignment",
         help=CONSIGNMENT_HELP + "; may be left out with --snapshot",
@@ -150,27 +161,25 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from flexparcel.cli.consignment_jobs import (
-        assemble_job,
-        check_snapshot_matches,
-        run_job,
-        run_parameters,
-    )
+    from flexparcel.cli.snapshots import assemble_job, check_snapshot_matches
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.snapshot import load_snapshot
     from flexparcel.consignments.userfile import resolve_consignment
     from flexparcel.integrate.errors import ConvergenceError
+    from flexparcel.scenarios.base import T_END
+    from flexparcel.scenarios.registry import get_scenario
 
     if args.test == "conveyor":
         return _run_conveyor(args)
+    scenario = get_scenario(args.test)  # an unknown name fails here, listing the known ones
     given = [k for k in _CONVEYOR_ONLY if getattr(args, k, None) is not None]
     if given:
         opts = ", ".join("--" + k.replace("_", "-") for k in given)
         raise ValueError(f"{opts} only apply to 'flexparcel run conveyor', not {args.test}")
     if args.consignment is None and args.snapshot is None:
         raise ValueError("give --consignment (KPBW, PB, KP, BW or a .toml file) or --snapshot")
-    if args.t_end is not None and not 0.0 < args.t_end <= 10.0:
-        raise ValueError(f"--t-end must be in (0, 10] s, got {args.t_end:g}")
+    if args.t_end is not None:
+        T_END.check(args.t_end, "--t-end")
     size = element_size_m(args.element_size)
     build = None
     if args.consignment is not None:
@@ -180,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
         snap = load_snapshot(args.snapshot)
         check_snapshot_matches(snap, build, size)
     # bad --set values fail here, before a (long) assembly
-    params = run_parameters(snap.build if snap is not None else build, args.assignments)
+    params = scenario.resolve(args.assignments, snap.build if snap is not None else build)
     progress = not args.no_progress
     try:
         if snap is None:
@@ -188,45 +197,83 @@ def run(args: argparse.Namespace) -> int:
             source = str(files.snapshot)
         else:
             source = str(args.snapshot)
-        run_, summary, files = run_job(
-            args.test, snap, params, args.out, t_end=args.t_end, progress=progress,
-            extra={"snapshot": source},
-        )  # fmt: skip
+        result, files = run_and_write(scenario, snap, params, args.out, t_end=args.t_end,
+                                      progress=progress, extra={"snapshot": source})  # fmt: skip
     except (AssemblyError, ConvergenceError) as exc:
         print(f"flexparcel run: {args.test} failed: {exc}", file=sys.stderr)
         return 1
-    responses = ", ".join(f"{k} = {v:.2f}" for k, v in run_.responses.items())
-    print(
-        f"{args.test} {snap.build.spec.id}: {responses}; {summary['simulated_s']:g} s simulated "
-        f"in {summary['wall_s']:.1f} s wall"
-    )
-    for key, path in files.as_dict().items():
+    responses = format_responses(scenario.responses(result))
+    simulated = float(result.simulation.time[-1] - result.simulation.time[0])
+    print(f"{args.test} {snap.build.spec.id}: {responses}; {simulated:g} s simulated in "
+          f"{result.wall_s:.1f} s wall")  # fmt: skip
+    for key, path in files.items():
         print(f"{key + ':':<18}{path}")
     return 0
+
+
+def run_and_write(scenario, snapshot, parameters, out: Path, *, t_end: float | None = None,
+                  progress: bool = True, extra: dict | None = None):  # fmt: skip
+    """Run ``scenario`` on one consignment's ``snapshot`` with a progress line on stderr and
+    write its files (with its pictures) into ``out``; returns the result and name -> path."""
+    from flexparcel.cli.progress import ProgressLine
+    from flexparcel.viz.scenario_pictures import pictures_for
+
+    bar = ProgressLine(f"{scenario.name} {snapshot.build.spec.id}", enabled=progress)
+    try:
+        result = scenario.run(snapshot, parameters, t_end=t_end, progress=bar)
+    finally:
+        bar.done()
+    files = scenario.write(result, out, extra=extra, pictures=pictures_for(scenario.name))
+    return result, files
+
+
+def format_responses(responses) -> str:
+    """``"name = 12.34, other = not reached (why)"`` of named Responses (values in their
+    units, two decimals)."""
+    return ", ".join(
+        f"{k} = {r.value:.2f}" if r.reached else f"{k} = not reached ({r.note})"
+        for k, r in responses.items()
+    )
+
+
+def parse_consignment_list(text: str) -> list[str]:
+    """``"KPBW,PB,KP,BW"`` -> names; empty entries and duplicates raise ``ValueError``."""
+    names = [s.strip() for s in text.split(",")]
+    if not names or any(not n for n in names):
+        raise ValueError(f"--consignments must be a comma-separated list of names, got {text!r}")
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise ValueError(f"--consignments: {dup} given twice; use --scene for copies")
+    return names
+
+
+def _conveyor_refs(args: argparse.Namespace, scene) -> dict[str, str]:
+    """Consignment key -> preset name or file: the scene file's, else --consignments (default
+    the paper's four)."""
+    from flexparcel.scenarios.conveyor_scene import PAPER_CONSIGNMENTS
+
+    if scene is not None and args.consignments is None:
+        return dict(scene.consignments)
+    refs = {}
+    for n in parse_consignment_list(args.consignments or ",".join(PAPER_CONSIGNMENTS)):
+        key = Path(n).stem if n.lower().endswith(".toml") else n.replace("/", "").upper()
+        refs[key] = n
+    return refs
 
 
 def _run_conveyor(args: argparse.Namespace) -> int:
     import sys
 
-    from flexparcel.cli.conveyor_job import (
-        DEFAULT_WORKERS,
-        content_law_for,
-        conveyor_job,
-        group_settings,
-        parse_consignment_list,
-        snapshot_for,
-    )
+    from flexparcel.cli.progress import ProgressLine
+    from flexparcel.cli.snapshots import snapshot_for
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
     from flexparcel.integrate.errors import ConvergenceError
-    from flexparcel.scenarios.conveyor_scene import (
-        PAPER_CONSIGNMENTS,
-        SceneLayout,
-        check_layout,
-        default_layout,
-        load_scene_file,
-        paper_conveyor,
-    )
+    from flexparcel.scenarios.base import T_END
+    from flexparcel.scenarios.conveyor_scenario import CHECKPOINT_FILE, WORKERS, group_settings
+    from flexparcel.scenarios.conveyor_scene import load_scene_file
+    from flexparcel.scenarios.registry import get_scenario
+    from flexparcel.viz.scenario_pictures import pictures_for
 
     bad = [k for k in _TEST_ONLY if getattr(args, k, None) not in (None, [])]
     if bad:
@@ -239,80 +286,56 @@ def _run_conveyor(args: argparse.Namespace) -> int:
                          "[[consignment]] tables")  # fmt: skip
     t_end = args.t_end if args.t_end is not None else (scene.t_end if scene and scene.t_end
                                                        else 2.0)  # fmt: skip
-    if not 0.0 < t_end <= 10.0:
-        raise ValueError(f"--t-end must be in (0, 10] s, got {t_end:g}")
+    T_END.check(t_end, "--t-end")
     size = element_size_m(args.element_size)
     if size is None and scene is not None:
         size = scene.element_size
-    for opt, v, lo, hi, unit in (("--belt-speed", args.belt_speed, 0.0, 10.0, "m/s"),
-                                 ("--deflector-angle", args.deflector_angle, 10.0, 90.0, "deg"),
-                                 ("--start-speed", args.start_speed, 0.0, 10.0, "m/s"),
-                                 ("--pair-reach", args.pair_reach, 0.0, 1e3, "m")):  # fmt: skip
-        if v is not None and not lo <= v <= hi:
-            raise ValueError(f"{opt} must be in [{lo:g}, {hi:g}] {unit}, got {v:g}")
-    conveyor = scene.conveyor if scene is not None else paper_conveyor()
-    if args.belt_speed is not None or args.deflector_angle is not None:
-        from dataclasses import replace
-
-        speed = conveyor.belt_speed if args.belt_speed is None else args.belt_speed
-        angle = conveyor.deflector_angle_deg if args.deflector_angle is None else (
-            args.deflector_angle)  # fmt: skip
-        if scene is None:
-            conveyor = paper_conveyor(speed, angle)
-        else:
-            conveyor = replace(conveyor, belt_speed=speed, deflector_angle_deg=angle)
-    if scene is not None and args.consignments is None:
-        refs = dict(scene.consignments)
-    else:
-        names = parse_consignment_list(args.consignments or ",".join(PAPER_CONSIGNMENTS))
-        refs = {}
-        for n in names:
-            key = Path(n).stem if n.lower().endswith(".toml") else n.replace("/", "").upper()
-            refs[key] = n
-    builds = {k: resolve_consignment(ref, size) for k, ref in refs.items()}
-    if scene is not None and scene.placements:
-        layout = SceneLayout(conveyor, scene.placements, scene.gap_above_belt)
-        if args.start_speed is not None:
-            from dataclasses import replace
-
-            layout = SceneLayout(conveyor, tuple(replace(p, speed=args.start_speed)
-                                                 for p in scene.placements),
-                                 scene.gap_above_belt)  # fmt: skip
-    else:
-        start = args.start_speed if args.start_speed is not None else (
-            scene.start_speed if scene is not None else 0.0)  # fmt: skip
-        gap = scene.gap_above_belt if scene is not None else None
-        kw = {} if gap is None else {"gap_above_belt": gap}
-        layout = default_layout(builds, conveyor, speed=start, **kw)
-    check_layout(layout, builds)  # before any (long) assembly
-    content_law = content_law_for(args.content_stiffness)
-    workers = DEFAULT_WORKERS if args.workers is None else args.workers
-    group_settings(workers)  # its range, before any assembly
+    workers = WORKERS.default if args.workers is None else args.workers
+    group_settings(workers, "--workers")  # its range, before any assembly
+    out: Path = args.out
+    checkpoint = out / CHECKPOINT_FILE
+    scenario = get_scenario("conveyor", scene=scene, workers=workers,
+                            checkpoint=checkpoint, preview=bool(args.preview))  # fmt: skip
+    # each option checked against its parameter's range, named as the user typed it
+    params = scenario.resolve({
+        name: scenario.parameter(name).check(getattr(args, name), flag)
+        for name, flag in _CONVEYOR_FLAGS.items() if getattr(args, name) is not None
+    })  # fmt: skip
+    builds = {k: resolve_consignment(ref, size) for k, ref in _conveyor_refs(args, scene).items()}
+    layout = scenario.layout(builds, params)  # checked before any (long) assembly
+    if args.preview and not checkpoint.is_file():
+        raise ValueError(f"--preview: no checkpoint {checkpoint} (start the run first)")
     progress = not args.no_progress
     try:
         snaps, sources = {}, {}
         for key, build in builds.items():
             snaps[key], sources[key] = snapshot_for(
-                key, build, args.out, snapshot_dir=args.snapshot_dir,
+                key, build, out, snapshot_dir=args.snapshot_dir,
                 element_size_given=size is not None, progress=progress,
             )  # fmt: skip
-        run_, summary, files = conveyor_job(
-            snaps, layout, args.out, t_end=t_end, pair_reach=args.pair_reach,
-            progress=progress, preview=bool(args.preview), content_law=content_law,
-            workers=workers,
-            extra={"snapshots": sources,
-                                      "scene_file": None if args.scene is None
-                                      else str(args.scene)},
-        )  # fmt: skip
+        out.mkdir(parents=True, exist_ok=True)
+        if checkpoint.exists() and not args.preview:
+            print(f"conveyor: resuming from {checkpoint}", file=sys.stderr)
+        bar = ProgressLine(f"conveyor ({len(layout.placements)} consignments)",
+                           enabled=progress and not args.preview)  # fmt: skip
+        try:
+            result = scenario.run(snaps, params, t_end=t_end, progress=bar)
+        finally:
+            bar.done()
+        extra = {"snapshots": sources,
+                 "scene_file": None if args.scene is None else str(args.scene)}  # fmt: skip
+        files = scenario.write(result, out / "preview" if args.preview else out, extra=extra,
+                               pictures=pictures_for("conveyor"))  # fmt: skip
     except (AssemblyError, ConvergenceError) as exc:
         print(f"flexparcel run: conveyor failed: {exc}", file=sys.stderr)
         return 1
+    res = result.simulation
     print(
         f"conveyor{' (preview of the checkpoint)' if args.preview else ''}: "
-        f"{len(layout.placements)} consignments, {summary['simulated_s']:g} s "
-        f"simulated in {summary['wall_s']:.1f} s wall ({summary['steps']} steps)"
+        f"{len(layout.placements)} consignments, {res.time[-1] - res.time[0]:g} s "
+        f"simulated in {result.wall_s:.1f} s wall ({int(res.stats.get('steps', 0))} steps)"
     )
-    for name, r in run_.responses.items():
+    for name, r in result.record.responses.items():
         c0, c1 = r.centroid[0], r.centroid[-1]
         exit_ = "-" if r.exit_time is None else f"{r.exit_time:.2f} s"
         contact = ", ".join(f"{v:.3f}" for v in r.deflector_contact_time)

@@ -1,5 +1,47 @@
-"""Scenarios: ready-made models and the responses users look at."""
+"""Scenarios: ready-made models and the responses users look at.
 
-from flexparcel.scenarios.sheet_swing import SheetSwing, sheet_swing_model
+Every scenario follows one protocol (:mod:`flexparcel.scenarios.base`) and is found by name in
+:mod:`flexparcel.scenarios.registry` (``swing``, ``drop-vertical``, ``drop-horizontal``,
+``conveyor``, and third-party ones through the ``flexparcel.scenarios`` entry points). The
+names below load lazily, so that importing the registry or the protocol loads no model code.
+"""
 
-__all__ = ["SheetSwing", "sheet_swing_model"]
+from __future__ import annotations
+
+import importlib
+
+__all__ = [
+    "Parameter",
+    "Response",
+    "Scenario",
+    "ScenarioResult",
+    "get_scenario",
+    "register_scenario",
+    "scenario_names",
+    "SheetSwing",
+    "sheet_swing_model",
+]
+
+_LAZY = {
+    "Parameter": "flexparcel.scenarios.base",
+    "Response": "flexparcel.scenarios.base",
+    "Scenario": "flexparcel.scenarios.base",
+    "ScenarioResult": "flexparcel.scenarios.base",
+    "get_scenario": "flexparcel.scenarios.registry",
+    "register_scenario": "flexparcel.scenarios.registry",
+    "scenario_names": "flexparcel.scenarios.registry",
+    "SheetSwing": "flexparcel.scenarios.sheet_swing",
+    "sheet_swing_model": "flexparcel.scenarios.sheet_swing",
+}
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

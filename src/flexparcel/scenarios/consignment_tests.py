@@ -29,21 +29,30 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from flexparcel.builder import ModelBuilder
 from flexparcel.consignments.build import Consignment, add_consignment, add_ground_contact
 from flexparcel.consignments.snapshot import Snapshot, place_snapshot
 from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
-from flexparcel.model.builder import Model, ModelBuilder
+from flexparcel.model.model import Model, State
+from flexparcel.scenarios.base import Parameter, resolve_parameters
 from flexparcel.simulate import SimulationResult, simulate
 
 __all__ = [
     "TABLE3_PARAMETERS",
+    "TABLE3",
     "TABLE6_VALUES",
     "TestRun",
+    "TestModel",
     "parse_assignments",
+    "swing_model",
+    "drop_model",
+    "drop_touch_radius",
     "swing_test",
     "drop_test",
+    "swing_peaks",
     "swing_responses",
+    "rebound_outcome",
     "rebound_height",
     "consignment_options",
 ]
@@ -68,6 +77,23 @@ TABLE6_VALUES: dict[str, float] = {
 }
 """The calibrated KP/BW parameters (paper Table 6), paper units."""
 
+_TABLE3_TEXT = {
+    "youngs_modulus": "Young's modulus of the packaging",
+    "damping_ratio": "stiffness-proportional Rayleigh damping beta of the packaging (C = beta K)",
+    "contact_stiffness_packaging_content": "contact stiffness c, packaging to content "
+    "(per 10 mm node spacing)",
+    "contact_damping_packaging_content": "contact damping d, packaging to content",
+    "contact_stiffness_packaging_ground": "contact stiffness c, packaging to ground plate",
+    "contact_damping_packaging_ground": "contact damping d, packaging to ground plate",
+}
+TABLE3: tuple[Parameter, ...] = tuple(
+    Parameter(name, unit, TABLE6_VALUES[name], 0.0, float("inf"), _TABLE3_TEXT[name],
+              low_open=True)
+    for name, (unit, _) in TABLE3_PARAMETERS.items()
+)  # fmt: skip
+"""The paper's Table 3 parameters as declared scenario parameters (paper units, default
+Table 6, any positive value)."""
+
 S_MAX_MM = 0.1  # STEP damping ramp of all pairs [mm] (the paper does not print its value)
 FRICTION_PACKAGING = 0.3  # packaging-content and packaging-plate (not given in the paper)
 
@@ -75,31 +101,7 @@ FRICTION_PACKAGING = 0.3  # packaging-content and packaging-plate (not given in 
 def parse_assignments(items: Sequence[str] | Mapping[str, float] | None) -> dict[str, float]:
     """Table 6 values overridden by ``name=value`` strings (or a mapping), paper units.
     Unknown names and non-positive values raise ``ValueError`` naming them."""
-    out = dict(TABLE6_VALUES)
-    if items is None:
-        return out
-    pairs = items.items() if isinstance(items, Mapping) else [_split(s) for s in items]
-    for name, value in pairs:
-        if name not in TABLE3_PARAMETERS:
-            raise ValueError(
-                f"unknown parameter {name!r}; settable: {', '.join(TABLE3_PARAMETERS)}"
-            )
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f"parameter {name}: {value!r} is not a number") from None
-        if not (np.isfinite(v) and v > 0):
-            unit = TABLE3_PARAMETERS[name][0]
-            raise ValueError(f"parameter {name} must be > 0 {unit}, got {value!r}")
-        out[name] = v
-    return out
-
-
-def _split(s: str) -> tuple[str, str]:
-    if "=" not in s:
-        raise ValueError(f"expected name=value, got {s!r}")
-    k, v = s.split("=", 1)
-    return k.strip(), v.strip()
+    return resolve_parameters(TABLE3, items)  # type: ignore[return-value]
 
 
 def _laws(p: Mapping[str, float], stick_model: bool) -> tuple[ContactLaw, ContactLaw]:
@@ -183,6 +185,37 @@ def _run(model, s0, t_end, dt_out, options, progress) -> tuple[SimulationResult,
     return res, time.perf_counter() - wall
 
 
+@dataclass
+class TestModel:
+    """A test's model, ready to run: the model, its consignment, the start state and what
+    the responses refer to."""
+
+    model: Model
+    consignment: Consignment
+    state0: State
+    """Start state: the snapshot placed in the test's position."""
+    reference: float
+    """Swing: x of the clamp edge [m]; drop: contact radius of the first touch [m]."""
+
+
+def swing_model(
+    snapshot: Snapshot,
+    parameters: Mapping[str, float],
+    *,
+    clamped_length: float = 0.020,
+    stick_model: bool = True,
+) -> TestModel:
+    """The swing test's model: ``clamped_length`` [m] of the length (the -x end, both
+    layers) clamped, the rest free under gravity; ``parameters`` as :func:`parse_assignments`
+    returns them (paper units)."""
+    b, c = _builder(snapshot, parameters, stick_model)
+    x = snapshot.positions[c.packaging, 0]
+    x_clamp = float(x.min() + clamped_length)
+    b.clamp(c.packaging[x <= x_clamp + 1e-9])
+    model = b.finalize()
+    return TestModel(model, c, place_snapshot(snapshot, model), x_clamp)
+
+
 def swing_test(
     snapshot: Snapshot,
     parameters: Mapping[str, float] | Sequence[str] | None = None,
@@ -197,32 +230,76 @@ def swing_test(
     """Clamp ``clamped_length`` [m] of the length (the -x end, both layers), release the
     horizontal consignment under gravity for ``t_end`` [s]."""
     p = parse_assignments(parameters)
-    b, c = _builder(snapshot, p, stick_model)
-    x = snapshot.positions[c.packaging, 0]
-    x_clamp = x.min() + clamped_length
-    b.clamp(c.packaging[x <= x_clamp + 1e-9])
-    model = b.finalize()
-    res, wall = _run(model, place_snapshot(snapshot, model), t_end, dt_out, options, progress)
-    free_end = res.positions[:, c.edge, 0].mean(axis=1)
-    first, second = swing_responses(free_end - x_clamp)
+    tm = swing_model(snapshot, p, clamped_length=clamped_length, stick_model=stick_model)
+    res, wall = _run(tm.model, tm.state0, t_end, dt_out, options, progress)
+    free_end = res.positions[:, tm.consignment.edge, 0].mean(axis=1)
+    first, second = swing_responses(free_end - tm.reference)
     return TestRun("swing", res, {"first_swing_mm": first * 1e3, "second_swing_mm": second * 1e3},
-                   p, model, c, wall)  # fmt: skip
+                   p, tm.model, tm.consignment, wall)  # fmt: skip
 
 
-def swing_responses(x_rel: np.ndarray) -> tuple[float, float]:
+def swing_peaks(x_rel: np.ndarray) -> tuple[float | None, float | None]:
     """First and second swing [same unit as ``x_rel``] from the free end's horizontal
     position relative to the clamp edge over time (positive: on its starting side): the
-    peak of the first excursion to the far side, then the peak back on the starting side."""
+    peak of the first excursion to the far side, then the peak back on the starting side.
+    None where the record does not reach it: no first swing while the free end never passes
+    under the clamp, no second swing while it has not come back past the clamp edge."""
     d = -np.asarray(x_rel, float)
     past = np.flatnonzero(d > 0)
     if past.size == 0:
-        return 0.0, 0.0
+        return None, None
     start = past[0]
     back = np.flatnonzero(d[start:] <= 0)
     end = start + back[0] if back.size else d.size
     first = float(d[start:end].max())
-    second = float(max(0.0, (-d[end:]).max())) if end < d.size else 0.0
+    second = float(max(0.0, (-d[end:]).max())) if end < d.size else None
     return first, second
+
+
+def swing_responses(x_rel: np.ndarray) -> tuple[float, float]:
+    """:func:`swing_peaks` with 0 for a swing the record does not reach."""
+    first, second = swing_peaks(x_rel)
+    return first or 0.0, second or 0.0
+
+
+def drop_model(
+    snapshot: Snapshot,
+    orientation: str,
+    parameters: Mapping[str, float],
+    *,
+    drop_height: float = 0.200,
+    stick_model: bool = True,
+) -> TestModel:
+    """The drop test's model: the consignment at rest with its lowest point ``drop_height``
+    [m] above a rigid plate (z = 0), lying flat ("horizontal") or standing on its +x edge
+    ("vertical", KP/BW's glued strip, with a line contact of that edge against the plate);
+    ``parameters`` in paper units."""
+    if orientation not in ("horizontal", "vertical"):
+        raise ValueError(f"orientation must be 'horizontal' or 'vertical', got {orientation!r}")
+    b, c = _builder(snapshot, parameters, stick_model)
+    _, ground = _laws(parameters, stick_model)
+    plate = b.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    thickness = 2.0 * c.contact_radius
+    add_ground_contact(b, c, plate, ground)  # packaging, and content as a backstop
+    rot = None
+    if orientation == "vertical":
+        # +x edge down: rotate +90 deg about y (x -> -z)
+        rot = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+        strip = thickness * (2.0 if c.build.has_glued_strip else 1.0)
+        b.add_edge_contact(c.edge, plate, ground, radius=strip / 2)
+    model = b.finalize()
+    s0 = place_snapshot(snapshot, model, rotation=rot, lowest_z=drop_height + c.contact_radius)
+    return TestModel(model, c, s0, drop_touch_radius(c, orientation))
+
+
+def drop_touch_radius(c: Consignment, orientation: str) -> float:
+    """Contact radius [m] with which the dropped consignment first touches the plate: its
+    nodes' lying flat; standing on the edge, the edge's line contact (half the strip's
+    thickness, doubled by KP/BW's glued strip), where larger."""
+    if orientation != "vertical":
+        return c.contact_radius
+    strip = 2.0 * c.contact_radius * (2.0 if c.build.has_glued_strip else 1.0)
+    return max(c.contact_radius, strip / 2)
 
 
 def drop_test(
@@ -240,27 +317,22 @@ def drop_test(
     """Release the consignment from rest with its lowest point ``drop_height`` [m] above a
     rigid plate (z = 0): lying flat ("horizontal") or standing on its +x edge ("vertical",
     KP/BW's glued strip, with a line contact of that edge against the plate)."""
-    if orientation not in ("horizontal", "vertical"):
-        raise ValueError(f"orientation must be 'horizontal' or 'vertical', got {orientation!r}")
     p = parse_assignments(parameters)
-    b, c = _builder(snapshot, p, stick_model)
-    _, ground = _laws(p, stick_model)
-    plate = b.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
-    thickness = 2.0 * c.contact_radius
-    add_ground_contact(b, c, plate, ground)  # packaging, and content as a backstop
-    rot = None
-    if orientation == "vertical":
-        # +x edge down: rotate +90 deg about y (x -> -z)
-        rot = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
-        strip = thickness * (2.0 if c.build.has_glued_strip else 1.0)
-        b.add_edge_contact(c.edge, plate, ground, radius=strip / 2)
-    model = b.finalize()
-    s0 = place_snapshot(snapshot, model, rotation=rot, lowest_z=drop_height + c.contact_radius)
-    res, wall = _run(model, s0, t_end, dt_out, options, progress)
-    # the vertical drop touches first with the edge's line contact, whose radius is larger
-    touch = c.contact_radius if rot is None else max(c.contact_radius, strip / 2)
-    rebound = rebound_height(model, res, c, touch_radius=touch)
-    return TestRun(f"drop-{orientation}", res, {"rebound_mm": rebound * 1e3}, p, model, c, wall)
+    tm = drop_model(snapshot, orientation, p, drop_height=drop_height, stick_model=stick_model)
+    res, wall = _run(tm.model, tm.state0, t_end, dt_out, options, progress)
+    rebound = rebound_height(tm.model, res, tm.consignment, touch_radius=tm.reference)
+    return TestRun(f"drop-{orientation}", res, {"rebound_mm": rebound * 1e3}, p, tm.model,
+                   tm.consignment, wall)  # fmt: skip
+
+
+def rebound_outcome(
+    model: Model, res: SimulationResult, c: Consignment, touch_radius: float | None = None
+) -> tuple[float | None, str]:
+    """Rebound [m] as :func:`rebound_height` defines it, or None and why where the record
+    does not reach it: no touch of the plate, no rise after the touch, or still rising at
+    the last frame (its peak lies beyond the record)."""
+    value, missing = _bounce(model, res, c, touch_radius)
+    return (None, missing) if missing else (value, "")
 
 
 def rebound_height(
@@ -272,6 +344,14 @@ def rebound_height(
     after the touch until the centre falls back below that minimum (a consignment that bounces
     and then tips over, as in the vertical drop, keeps sinking afterwards: its global minimum
     comes after the bounce)."""
+    return _bounce(model, res, c, touch_radius)[0]
+
+
+def _bounce(
+    model: Model, res: SimulationResult, c: Consignment, touch_radius: float | None
+) -> tuple[float, str]:
+    """:func:`rebound_height`'s value [m] and, where the record does not reach the rebound,
+    why (else "")."""
     ids = c.node_ids
     m = model.mass[ids, 0]
     zc = res.positions[:, ids, 2] @ m / m.sum()
@@ -279,7 +359,7 @@ def rebound_height(
     low = res.positions[:, c.packaging, 2].min(axis=1) - radius
     touch = np.flatnonzero(low <= 0.0)
     if touch.size == 0:
-        return 0.0
+        return 0.0, "the consignment did not touch the plate within the run"
     k = touch[0]
     if k > 0:  # interpolate the centre height at the touch between the two frames
         w = low[k - 1] / (low[k - 1] - low[k])
@@ -288,8 +368,11 @@ def rebound_height(
         z_touch = zc[0]
     rising = np.flatnonzero(np.diff(zc[k:]) > 0.0)
     if rising.size == 0:
-        return 0.0  # still sinking at the end: no bounce
+        return 0.0, "still sinking at the end of the run: no bounce within it"
     kmin = k + int(rising[0])
     below = np.flatnonzero(zc[kmin + 1 :] < zc[kmin])
     end = kmin + 1 + int(below[0]) if below.size else zc.size
-    return float(max(0.0, zc[kmin:end].max() - z_touch))
+    value = float(max(0.0, zc[kmin:end].max() - z_touch))
+    if end == zc.size and zc[-1] > zc[-2]:  # the peak may lie beyond the last frame
+        return value, "still rising at the end of the run: the peak lies beyond it"
+    return value, ""

@@ -1,0 +1,165 @@
+"""What the swing and drop scenarios share: one consignment from its snapshot, the paper's
+Table 3 parameters (paper units, defaults: the packaging's own modulus and damping ratio and
+Table 6's contact values), and the files a user opens.
+
+Files of a run (in ``out_dir``): ``responses.json``, ``results.npz``, ``paraview/packaging.pvd``
+(+ ``paraview/content.pvd`` for a rigid content), and the pictures of the caller's picture
+writer (:mod:`flexparcel.viz.scenario_pictures`: ``frames.png``, side views at the start, the
+events of the response curve and the end, and ``response.png``, the curve).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from flexparcel.scenarios.base import (
+    T_END,
+    PictureWriter,
+    Response,
+    ScenarioBase,
+    ScenarioResult,
+    single_snapshot,
+    write_json,
+)
+from flexparcel.scenarios.consignment_tests import TABLE3, TABLE6_VALUES, TestModel, TestRun
+
+if TYPE_CHECKING:
+    from flexparcel.consignments.build import ConsignmentBuild
+    from flexparcel.consignments.snapshot import Snapshot
+
+__all__ = ["ConsignmentTest", "MIN_FRAMES", "frame_indices", "content_rotations", "mm_response"]
+
+MIN_FRAMES = 10  # short runs still get enough recorded frames for the pictures
+
+
+def content_rotations(run: TestRun) -> np.ndarray | None:
+    """Rotation matrices of the rigid content over the frames, shape (k, 3, 3); None for a
+    flexible content."""
+    from scipy.spatial.transform import Rotation
+
+    body = run.consignment.content_body
+    if body is None:
+        return None
+    return Rotation.from_rotvec(run.result.rotation_vectors[:, body]).as_matrix()
+
+
+def frame_indices(count: int, events: Sequence[int], want: int = 4) -> list[int]:
+    """Frame indices out of ``count`` for a picture: the first, the ``events``, the last,
+    filled up with evenly spaced ones to ``want`` where events coincide or are missing."""
+    chosen = {0, count - 1} | {int(e) for e in events if 0 <= e < count}
+    for k in np.linspace(0, count - 1, want).round().astype(int):
+        if len(chosen) >= want:
+            break
+        chosen.add(int(k))
+    return sorted(chosen)
+
+
+class ConsignmentTest(ScenarioBase):
+    """Base of a test on one consignment. Subclasses set :attr:`name`, :attr:`t_end`,
+    :attr:`dt_out` and implement :meth:`build`, :meth:`_test_run` and :meth:`responses`."""
+
+    parameters = TABLE3
+    t_end: float = 1.0
+    """Default simulated time [s]."""
+    dt_out: float = 0.01
+    """Output interval [s] (at most t_end / :data:`MIN_FRAMES`)."""
+
+    def defaults(self, build: ConsignmentBuild | None = None) -> dict[str, float | None]:
+        """Table 6's values; with ``build``, its packaging's own Young's modulus [MPa] and
+        damping ratio [s] (for KP/BW Table 6's). Why not Table 6 throughout: that would
+        silently give a bubble-wrap pouch kraft paper's 926 MPa and ignore a consignment
+        file's ``[material]`` table."""
+        p: dict[str, float | None] = dict(TABLE6_VALUES)
+        if build is not None:
+            p["youngs_modulus"] = build.material.youngs_modulus / 1e6
+            p["damping_ratio"] = build.material.damping_ratio
+        return p
+
+    def build(self, consignment: Snapshot | Mapping[str, Snapshot],
+              parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip
+        raise NotImplementedError
+
+    def _test_run(self, snapshot: Snapshot, parameters: dict, t_end: float, dt_out: float,
+                  progress: Any) -> TestRun:  # fmt: skip
+        raise NotImplementedError
+
+    def run(
+        self,
+        consignment: Snapshot | Mapping[str, Snapshot],
+        parameters: Mapping[str, object] | None = None,
+        *,
+        t_end: float | None = None,
+        progress: Any = None,
+    ) -> ScenarioResult:
+        snap = single_snapshot(consignment, self.name)
+        p = self.resolve(parameters, snap.build)
+        t = self.t_end if t_end is None else T_END.check(t_end)
+        dt_out = min(self.dt_out, t / MIN_FRAMES)
+        run = self._test_run(snap, p, t, dt_out, progress)
+        size_mm = snap.build.element_size * 1e3
+        settings = {"t_end_s": t, "dt_out_s": dt_out, "element_size_mm": size_mm,
+                    **self._settings()}  # fmt: skip
+        return ScenarioResult(self.name, dict(p), run.result, run.wall_s, run, settings)
+
+    def summary(self, result: ScenarioResult) -> dict:
+        """``responses.json`` content (without ``files``): the run's summary with its
+        responses in mm under their names, ``element_size_mm``, and ``responses`` with
+        units and notes."""
+        run: TestRun = result.record
+        out = run.summary()
+        out["element_size_mm"] = result.settings["element_size_mm"]
+        out.update(self._summary_settings(result))
+        out["responses"] = {k: r.to_dict() for k, r in self.responses(result).items()}
+        return out
+
+    def _summary_settings(self, result: ScenarioResult) -> dict:
+        """Keys the subclass adds to ``responses.json``."""
+        return {}
+
+    def _settings(self) -> dict:
+        """The subclass's options, recorded in :attr:`ScenarioResult.settings`."""
+        return {}
+
+    def write(self, result: ScenarioResult, out_dir: str | Path, *,
+              extra: Mapping[str, Any] | None = None,
+              pictures: PictureWriter | None = None) -> dict[str, Path]:  # fmt: skip
+        from flexparcel.io.paraview import write_paraview, write_paraview_boxes
+        from flexparcel.io.results import save_result
+
+        run: TestRun = result.record
+        res, model, c = run.result, run.model, run.consignment
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        summary = {**self.summary(result), **(extra or {})}
+        files: dict[str, Path] = {"json": out / "responses.json"}
+        # the responses first: a long run's numbers survive a failure while writing pictures
+        write_json(files["json"], summary)
+        files["results"] = save_result(out / "results.npz", res, model, {
+            "test": self.name, "consignment": c.build.to_dict(), "responses": run.responses,
+            "parameters": run.parameters,
+        })  # fmt: skip
+        files["paraview"] = write_paraview(out / "paraview", res, model, name="packaging")
+        rotations = content_rotations(run)
+        if rotations is not None:
+            i = c.content_body
+            files["paraview_content"] = write_paraview_boxes(
+                out / "paraview", res.time, res.positions[:, [i]], rotations[:, None],
+                [c.content_box], name="content",
+            )  # fmt: skip
+        if pictures is not None:
+            files.update(pictures(result, out))
+        summary["files"] = {k: str(v) for k, v in files.items()}
+        write_json(files["json"], summary)
+        return files
+
+
+def mm_response(value_m: float | None, description: str, note: str = "") -> Response:
+    """A length response [m] reported in mm (None: not reached, ``note`` says why)."""
+    if value_m is None or (isinstance(value_m, float) and math.isnan(value_m)):
+        return Response(None, "mm", description, note or "not reached within the run")
+    return Response(value_m * 1e3, "mm", description)

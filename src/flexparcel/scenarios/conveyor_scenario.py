@@ -1,0 +1,277 @@
+"""The paper's bulk conveyor run as a scenario (section 4.4, Fig. 35): consignments on a belt
+with two deflectors, 2 s (:func:`~flexparcel.scenarios.conveyor_scene.run_conveyor`).
+
+Parameters: belt speed, deflector angle, the queue's start speed, the packaging-content
+contact stiffness and the consignment pairing reach; each defaults to the scene's (the paper
+scene, or a scene file's). Settings (factory options): ``scene`` (a
+:class:`~flexparcel.scenarios.conveyor_scene.SceneFile`), ``workers`` (worker processes, 0:
+the scene as one model), ``checkpoint`` (a ``.npz`` the run saves itself to and resumes
+from) and ``preview`` (no stepping: the frames the checkpoint holds so far).
+
+Responses, per placement NAME: ``NAME.exit_time`` [s], ``NAME.final_x`` / ``NAME.final_y``
+[m], ``NAME.deflector_contact_time_I`` [s] (I = 1, 2, ...), ``NAME.jam_start`` [s],
+``NAME.peak_contact_force`` [N], ``NAME.deflector_crossing`` [s] (not reached: the wanted
+outcome, no packaging node went behind a deflector).
+
+Files (in ``out_dir``): ``responses.json`` (per-consignment trajectories and responses),
+``results.npz``, ``paraview/conveyor.pvd`` (all nodes: packaging and deflector faces) +
+``paraview/contents.pvd`` (rigid contents as boxes), and the pictures of the caller's
+picture writer (:mod:`flexparcel.viz.scenario_pictures`: ``snapshots.png``,
+``trajectories.png``, ``animation.gif``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from flexparcel.scenarios.base import (
+    T_END,
+    Parameter,
+    PictureWriter,
+    Response,
+    ScenarioBase,
+    ScenarioResult,
+    write_json,
+)
+
+if TYPE_CHECKING:
+    from flexparcel.consignments.build import ConsignmentBuild
+    from flexparcel.consignments.snapshot import Snapshot
+    from flexparcel.contact.law import ContactLaw
+    from flexparcel.scenarios.conveyor_groups import GroupSettings
+    from flexparcel.scenarios.conveyor_scene import ConveyorModel, SceneFile, SceneLayout
+
+__all__ = ["ConveyorScenario", "CONVEYOR_PARAMETERS", "WORKERS", "CHECKPOINT_FILE",
+           "content_law_for", "group_settings"]  # fmt: skip
+
+CHECKPOINT_FILE = "checkpoint.npz"
+"""Name of the checkpoint a run in a directory saves itself to."""
+
+CONVEYOR_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter("belt_speed", "m/s", None, 0.0, 10.0, "belt speed (default the scene's, 1.6)"),
+    Parameter("deflector_angle", "deg", None, 10.0, 90.0,
+              "deflector angle to the belt direction (default the scene's, 45)"),
+    Parameter("start_speed", "m/s", None, 0.0, 10.0,
+              "initial velocity of the queued consignments along the belt (default the "
+              "scene's, 0: at rest on the running belt)"),
+    Parameter("content_stiffness", "N/mm", None, 1.0, 1e4,
+              "packaging-content contact stiffness c and stick stiffness k_t = c of every "
+              "consignment (default: as assembled, Table 6's 649)"),
+    Parameter("pair_reach", "m", None, 0.0, 1e3,
+              "consignment-consignment contact only for pairs that start closer than this "
+              "(default: every pair)"),
+)  # fmt: skip
+WORKERS = Parameter("workers", "", 2, 0, 64, "worker processes (0: the scene as one model)",
+                    integer=True)  # fmt: skip
+"""The ``workers`` setting: consignments that cannot touch are integrated as separate models
+on that many processes (the default 2: the CI-class machine's two cores)."""
+
+
+def content_law_for(stiffness_n_per_mm: float | None, label: str = "content_stiffness"):
+    """The packaging-content contact law with stiffness c = ``stiffness_n_per_mm`` [N/mm] in
+    [1, 1e4] (stick stiffness k_t = c, damping kept), or None (Table 6's law, as assembled)
+    when not given. ``label`` names the value in the error."""
+    if stiffness_n_per_mm is None:
+        return None
+    from flexparcel.consignments.build import default_packaging_content_law
+
+    c = CONVEYOR_PARAMETERS[3].check(stiffness_n_per_mm, label) * 1e3
+    return replace(default_packaging_content_law(), stiffness=c, stick_stiffness=c)
+
+
+def group_settings(workers: int, label: str = "workers") -> GroupSettings | None:
+    """None (one model) for 0 workers, else that many worker processes (numba 1 thread
+    each) for :func:`~flexparcel.scenarios.conveyor_groups.integrate_by_groups`."""
+    from flexparcel.scenarios.conveyor_groups import GroupSettings
+
+    if not isinstance(workers, int):  # 2.0 workers is a typo, not two processes
+        raise ValueError(f"{label} must be an integer {WORKERS.range_text()}, got {workers!r}")
+    n = WORKERS.check(workers, label)
+    return None if n == 0 else GroupSettings(workers=n)
+
+
+class ConveyorScenario(ScenarioBase):
+    """The conveyor scene on consignments given by name -> snapshot."""
+
+    name = "conveyor"
+    description = "bulk conveyor: consignments on a belt with two deflectors (paper 4.4)"
+    parameters = CONVEYOR_PARAMETERS
+
+    def __init__(self, *, scene: SceneFile | None = None, workers: int = 2,
+                 checkpoint: str | Path | None = None, preview: bool = False,
+                 jam_time: float = 0.3):  # fmt: skip
+        group_settings(workers)  # its range, before any run
+        self.scene = scene
+        self.workers = workers
+        self.checkpoint = None if checkpoint is None else Path(checkpoint)
+        self.preview = bool(preview)
+        self.jam_time = float(jam_time)
+
+    @property
+    def t_end(self) -> float:
+        """Default simulated time [s]: the scene file's, else the paper's 2 s."""
+        return self.scene.t_end if self.scene is not None and self.scene.t_end else 2.0
+
+    def layout(self, builds: Mapping[str, ConsignmentBuild],
+               parameters: Mapping[str, float | None]) -> SceneLayout:  # fmt: skip
+        """Where the consignments ``builds`` (name -> build) lie: the scene file's placements,
+        else the default queue; belt speed, deflector angle and start speed from
+        ``parameters`` where given. Checked for overlaps and fit (before any assembly)."""
+        from flexparcel.scenarios.conveyor_scene import (
+            SceneLayout,
+            check_layout,
+            default_layout,
+            paper_conveyor,
+        )
+
+        scene, p = self.scene, parameters
+        conveyor = scene.conveyor if scene is not None else paper_conveyor()
+        speed, angle = p.get("belt_speed"), p.get("deflector_angle")
+        if speed is not None or angle is not None:
+            speed = conveyor.belt_speed if speed is None else speed
+            angle = conveyor.deflector_angle_deg if angle is None else angle
+            if scene is None:  # the paper scene's deflector positions follow the angle
+                conveyor = paper_conveyor(speed, angle)
+            else:
+                conveyor = replace(conveyor, belt_speed=speed, deflector_angle_deg=angle)
+        start = p.get("start_speed")
+        if scene is not None and scene.placements:
+            placements = scene.placements
+            if start is not None:
+                placements = tuple(replace(q, speed=start) for q in placements)
+            layout = SceneLayout(conveyor, placements, scene.gap_above_belt)
+        else:
+            if start is None:
+                start = scene.start_speed if scene is not None else 0.0
+            kw = {} if scene is None else {"gap_above_belt": scene.gap_above_belt}
+            layout = default_layout(builds, conveyor, speed=start, **kw)
+        check_layout(layout, builds)
+        return layout
+
+    def _content_law(self, p: Mapping[str, float | None]) -> ContactLaw | None:
+        return content_law_for(p.get("content_stiffness"))
+
+    def build(self, consignment: Mapping[str, Snapshot],
+              parameters: Mapping[str, float | None]) -> ConveyorModel:  # fmt: skip
+        from flexparcel.scenarios.conveyor_scene import build_conveyor_model
+
+        p = self.resolve(parameters)
+        layout = self.layout({k: s.build for k, s in consignment.items()}, p)
+        return build_conveyor_model(consignment, layout, pair_reach=p["pair_reach"],
+                                    content_law=self._content_law(p))  # fmt: skip
+
+    def run(
+        self,
+        consignment: Mapping[str, Snapshot],
+        parameters: Mapping[str, object] | None = None,
+        *,
+        t_end: float | None = None,
+        progress: Any = None,
+    ) -> ScenarioResult:
+        from flexparcel.scenarios.conveyor_scene import run_conveyor
+
+        if not isinstance(consignment, Mapping):
+            raise ValueError("the conveyor runs on consignments given by name -> snapshot")
+        p = self.resolve(parameters)
+        t = self.t_end if t_end is None else T_END.check(t_end)
+        layout = self.layout({k: s.build for k, s in consignment.items()}, p)
+        dt_out = min(0.01, t / 20.0)
+        run = run_conveyor(consignment, layout, t, dt_out=dt_out, pair_reach=p["pair_reach"],
+                           progress=progress, checkpoint=self.checkpoint,
+                           checkpoint_only=self.preview, content_law=self._content_law(p),
+                           groups=group_settings(self.workers),
+                           jam_time=self.jam_time)  # fmt: skip
+        settings = {
+            "belt_speed_m_s": layout.conveyor.belt_speed,
+            "deflector_angle_deg": layout.conveyor.deflector_angle_deg,
+            "t_end_s": t,
+            "dt_out_s": dt_out,
+            "pair_reach_m": p["pair_reach"],
+            "workers": self.workers,
+            "content_stiffness_N_per_mm": p["content_stiffness"],
+            "element_size_mm": {k: s.build.element_size * 1e3 for k, s in consignment.items()},
+        }
+        return ScenarioResult(self.name, dict(p), run.result, run.wall_s, run, settings)
+
+    def responses(self, result: ScenarioResult) -> dict[str, Response]:
+        from flexparcel.scenarios.conveyor_scene import deflector_crossings
+
+        run = result.record
+        crossings = deflector_crossings(run.conveyor_model, run.result)
+        out: dict[str, Response] = {}
+        for name, r in run.responses.items():
+            out.update(_consignment_responses(name, r, crossings.get(name)))
+        return out
+
+    def summary(self, result: ScenarioResult) -> dict:
+        """``responses.json`` content (without ``files``): the run's summary, ``parameters``
+        (the run's settings) and ``responses`` with units."""
+        out = result.record.summary()
+        out["parameters"] = dict(result.settings)
+        out["responses"] = {k: r.to_dict() for k, r in self.responses(result).items()}
+        return out
+
+    def write(self, result: ScenarioResult, out_dir: str | Path, *,
+              extra: Mapping[str, Any] | None = None,
+              pictures: PictureWriter | None = None) -> dict[str, Path]:  # fmt: skip
+        from scipy.spatial.transform import Rotation
+
+        from flexparcel.io.paraview import write_paraview, write_paraview_boxes
+        from flexparcel.io.results import save_result
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        run = result.record
+        res, cm = run.result, run.conveyor_model
+        summary = {**self.summary(result), **(extra or {})}
+        files: dict[str, Path] = {"json": out / "responses.json"}
+        write_json(files["json"], summary)  # the numbers first: they survive a failing picture
+        files["results"] = save_result(out / "results.npz", res, cm.model, {
+            "scenario": "conveyor", "layout": cm.layout.to_dict(),
+            "consignments": {k: c.node_ids.tolist() for k, c in cm.consignments.items()},
+        })  # fmt: skip
+        files["paraview"] = write_paraview(out / "paraview", res, cm.model, name="conveyor")
+        bodies = [c for c in cm.consignments.values() if c.content_body is not None]
+        if bodies:
+            ids = [c.content_body for c in bodies]
+            rv = res.rotation_vectors[:, ids]
+            rot = Rotation.from_rotvec(rv.reshape(-1, 3)).as_matrix().reshape(*rv.shape[:2], 3, 3)
+            files["paraview_contents"] = write_paraview_boxes(
+                out / "paraview", res.time, res.positions[:, ids], rot,
+                [c.content_box for c in bodies], name="contents",
+            )  # fmt: skip
+        if pictures is not None:
+            files.update(pictures(result, out))
+        summary["files"] = {k: str(v) for k, v in files.items()}
+        write_json(files["json"], summary)
+        return files
+
+
+def _consignment_responses(name: str, r: Any, crossing: float | None) -> dict[str, Response]:
+    """The scalar responses of one consignment's
+    :class:`~flexparcel.scenarios.conveyor_responses.ConsignmentResponse`."""
+    end = r.centroid[-1]
+    out = {
+        f"{name}.exit_time": Response(
+            r.exit_time, "s", "time the centroid reaches the belt end",
+            "" if r.exit_time is not None else "did not reach the belt end within the run"),
+        f"{name}.final_x": Response(float(end[0]), "m", "centroid x at the end of the run"),
+        f"{name}.final_y": Response(float(end[1]), "m", "centroid y at the end of the run"),
+        f"{name}.jam_start": Response(
+            r.jam_start, "s", "start of the first jam",
+            "" if r.jam_start is not None else "no jam within the run"),
+        f"{name}.peak_contact_force": Response(
+            r.peak_contact_force, "N", "largest deflector normal force",
+            "" if r.peak_contact_force is not None else "no contact force recorded"),
+        f"{name}.deflector_crossing": Response(
+            crossing, "s", "first time a packaging node lies behind a deflector",
+            "" if crossing is not None else "no packaging node behind a deflector"),
+    }  # fmt: skip
+    for i, t in enumerate(r.deflector_contact_time, start=1):
+        out[f"{name}.deflector_contact_time_{i}"] = Response(
+            float(t), "s", f"time in contact with deflector {i}"
+        )
+    return out

@@ -1,0 +1,115 @@
+"""The drop tests as scenarios (paper section 3.2, Fig. 26): released from rest
+``drop_height`` (200 mm) above a rigid plate, standing on an edge (``drop-vertical``, with
+the edge's line contact) or lying flat (``drop-horizontal``), 0.3 s.
+
+Response [mm]: ``rebound_mm``, the rise of the centre of mass in the first bounce above its
+height at the first touch (:func:`~flexparcel.scenarios.consignment_tests.rebound_outcome`);
+not reached when the run ends before the touch or before the bounce's peak. Files: see
+:mod:`flexparcel.scenarios.consignment_scenario`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from flexparcel.scenarios.base import Response, ScenarioResult, single_snapshot
+from flexparcel.scenarios.consignment_scenario import ConsignmentTest, mm_response
+from flexparcel.scenarios.consignment_tests import (
+    TestModel,
+    TestRun,
+    drop_model,
+    drop_test,
+    drop_touch_radius,
+    rebound_outcome,
+)
+
+if TYPE_CHECKING:
+    from flexparcel.consignments.snapshot import Snapshot
+
+__all__ = ["DropScenario", "vertical_drop", "horizontal_drop", "drop_curve", "DROP_HEIGHT"]
+
+DROP_HEIGHT = 0.200
+"""Drop height of the paper's tests [m]: the lowest point above the plate at release."""
+
+
+class DropScenario(ConsignmentTest):
+    """A drop test; ``orientation`` "vertical" or "horizontal", ``drop_height`` [m]."""
+
+    description = "drop test: released from rest 200 mm above a rigid plate (paper 3.2)"
+    t_end = 0.3
+    dt_out = 0.001  # the impact lasts a few ms
+
+    def __init__(self, orientation: str, *, drop_height: float = DROP_HEIGHT,
+                 stick_model: bool = True):  # fmt: skip
+        if orientation not in ("vertical", "horizontal"):
+            raise ValueError(f"orientation must be 'vertical' or 'horizontal', got {orientation!r}")
+        if not 0.0 < drop_height <= 10.0:
+            raise ValueError(f"drop_height must be in (0, 10] m, got {drop_height!r}")
+        self.orientation = orientation
+        self.name = f"drop-{orientation}"
+        self.drop_height = float(drop_height)
+        self.stick_model = bool(stick_model)
+
+    def build(self, consignment: Snapshot | Mapping[str, Snapshot],
+              parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip
+        snap = single_snapshot(consignment, self.name)
+        return drop_model(snap, self.orientation, self.resolve(parameters, snap.build),
+                          drop_height=self.drop_height, stick_model=self.stick_model)  # fmt: skip
+
+    def _settings(self) -> dict:
+        return {"drop_height_m": self.drop_height}
+
+    def _test_run(self, snapshot, parameters, t_end, dt_out, progress) -> TestRun:
+        return drop_test(snapshot, self.orientation, parameters, t_end=t_end, dt_out=dt_out,
+                         drop_height=self.drop_height, progress=progress,
+                         stick_model=self.stick_model)  # fmt: skip
+
+    def responses(self, result: ScenarioResult) -> dict[str, Response]:
+        run: TestRun = result.record
+        touch = drop_touch_radius(run.consignment, self.orientation)
+        value, why = rebound_outcome(run.model, run.result, run.consignment, touch)
+        return {"rebound_mm": mm_response(
+            value, "rise of the centre of mass in the first bounce above its height at the "
+            "first touch", why)}  # fmt: skip
+
+    def _summary_settings(self, result: ScenarioResult) -> dict:
+        return {"drop_height_mm": self.drop_height * 1e3}
+
+
+def vertical_drop(**options: Any) -> DropScenario:
+    """``drop-vertical``: standing on its +x edge (KP/BW's glued strip)."""
+    return DropScenario("vertical", **options)
+
+
+def horizontal_drop(**options: Any) -> DropScenario:
+    """``drop-horizontal``: lying flat."""
+    return DropScenario("horizontal", **options)
+
+
+def drop_curve(run: TestRun) -> tuple[np.ndarray, tuple[float, float] | None, int | None,
+                                      int | None]:  # fmt: skip
+    """The drop's centre-of-mass height [m] (k,), the first contact ``(time [s], centre
+    height [m])``, the frame of deepest compression and the frame of the rebound peak (None
+    where there is none), as in
+    :func:`~flexparcel.scenarios.consignment_tests.rebound_height`."""
+    res, c = run.result, run.consignment
+    ids = c.node_ids
+    m = run.model.mass[ids, 0]
+    zc = res.positions[:, ids, 2] @ m / m.sum()
+    low = res.positions[:, c.packaging, 2].min(axis=1) - c.contact_radius
+    touch = np.flatnonzero(low <= 0.0)
+    if touch.size == 0:
+        return zc, None, None, None
+    k = int(touch[0])
+    if k > 0:
+        w = low[k - 1] / (low[k - 1] - low[k])
+        t_touch = res.time[k - 1] + w * (res.time[k] - res.time[k - 1])
+        z_touch = zc[k - 1] + w * (zc[k] - zc[k - 1])
+    else:
+        t_touch, z_touch = res.time[0], zc[0]
+    kmin = k + int(np.argmin(zc[k:]))
+    peak = kmin + int(np.argmax(zc[kmin:]))
+    return zc, (float(t_touch), float(z_touch)), kmin, (peak if zc[peak] > z_touch else None)
