@@ -13,6 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from contact_views import node_face_sets, plane_points
+from flexparcel.builder import ModelBuilder
 from flexparcel.consignments.assembly import (
     AssemblySettings,
     assemble,
@@ -39,7 +41,6 @@ from flexparcel.consignments.snapshot import (
 )
 from flexparcel.consignments.userfile import load_consignment_file
 from flexparcel.contact.geometry import point_box_contact
-from flexparcel.model.builder import ModelBuilder
 from flexparcel.model.rigid import RoundedBox
 from flexparcel.scenarios.consignment_tests import drop_test, swing_test
 
@@ -113,7 +114,7 @@ def test_flexible_content_and_film_contact_both_ways():
     assert 0 < on_edges.sum() < (on_faces >= 1).sum()  # and face-inner nodes are left out
     film, content = set(c.packaging.tolist()), set(c.content_nodes.tolist())
     pairs = {}  # (whose nodes, whose faces) -> nodes
-    for nodes, tris, *_ in model.face_sets:
+    for nodes, tris in node_face_sets(model):
         faces = "film" if set(tris.ravel().tolist()) <= film else "content"
         assert set(tris.ravel().tolist()) <= (film if faces == "film" else content)
         who = "film" if set(nodes.tolist()) <= film else "content"
@@ -304,12 +305,13 @@ def test_drop_plate_meets_the_content_box_once_through_its_packaging(small_drop)
 
     run = small_drop
     m, c = run.model, run.consignment
-    box = m.cp_node == c.content_body
-    film = np.isin(m.cp_node, c.packaging)
+    cp = plane_points(m)
+    box = cp.node == c.content_body
+    film = np.isin(cp.node, c.packaging)
     i = int(np.flatnonzero(m.rigid_nodes == c.content_body)[0])
-    assert box.sum() == 8 and np.allclose(np.abs(m.cp_offset[box]), m.rigid_half_inner[i])
-    assert np.allclose(m.cp_radius[box], m.rigid_radius[i])
-    assert set(m.cp_law[box]) == set(m.cp_law[film]) and len(set(m.cp_law[film])) == 1
+    assert box.sum() == 8 and np.allclose(np.abs(cp.offset[box]), m.rigid_half_inner[i])
+    assert np.allclose(cp.radius[box], m.rigid_radius[i])
+    assert set(cp.law[box]) == set(cp.law[film]) and len(set(cp.law[film])) == 1
     # the box's lowest point (its inner box's lowest corner less the edge radius) stays above
     # the plate, to the contact's 0.1 mm indentation bound (s_max); measured 0.36 mm above, on
     # its packaging (two 0.5 mm layers pressed into each other between 20 mm-spaced nodes)

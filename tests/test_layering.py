@@ -18,8 +18,6 @@ import sys
 from functools import cache
 from pathlib import Path
 
-import pytest
-
 SRC = Path(__file__).resolve().parents[1] / "src"
 PACKAGE = "flexparcel"
 
@@ -256,7 +254,6 @@ def test_physics_reaches_no_cli_or_viz():
     assert not bad, "physics code reaches cli/viz:\n" + "\n".join(bad)
 
 
-@pytest.mark.xfail(strict=True, reason="ModelBuilder still lives in flexparcel.model; moving")
 def test_model_imports_no_elements_or_contact():
     bad = _direct(("model",), lambda m: _in(m, ("elements", "contact")))
     assert not bad, "model imports element/contact code:\n" + "\n".join(bad)

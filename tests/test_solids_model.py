@@ -90,7 +90,7 @@ def test_sheet_rests_on_a_solid_block():
 
 
 def test_solid_growth_expands_the_elements_smoothly():
-    # Model.solid_growth scales a group's reference geometry at every step: a free hex bar
+    # a solid group's growth scales its reference geometry at every step: a free hex bar
     # (no gravity, mass damping) whose reference grows by 10 % over 0.1 s ends, at rest, 10 %
     # larger in every direction: the co-rotational element is strain-free at its reference
     # shape. The lag behind the growth (1.8 % in z at 0.1 s) decays as exp(-alpha t / 2) =
@@ -102,11 +102,12 @@ def test_solid_growth_expands_the_elements_smoothly():
     b = fp.ModelBuilder(gravity=(0.0, 0.0, 0.0), mass_damping=200.0)
     ids = b.add_solid_mesh(pts, cells, "hex8", material=SolidMaterial(1e5, 0.3, 500.0))
     model = b.finalize()
-    full = model.solid_groups[0]["xref"].copy()
-    model.solid_growth[:] = [(0, full, Schedule((0.0, 0.1), (1.0, 1.1)))]
+    (group,) = model.element_groups
+    full = group.xref.copy()
+    group.growth = (full, Schedule((0.0, 0.1), (1.0, 1.1)))
     opt = fp.IntegratorOptions(tol_displacement=1e-7)
     r = fp.simulate(model, 0.2, dt_out=0.1, options=opt)
     p = r.positions[-1][ids]
     ext = p.max(axis=0) - p.min(axis=0)
     np.testing.assert_allclose(ext, 1.1 * np.array([0.2, 0.1, 0.05]), rtol=2e-5)
-    np.testing.assert_allclose(model.solid_groups[0]["xref"], 1.1 * full)
+    np.testing.assert_allclose(group.xref, 1.1 * full)

@@ -19,9 +19,9 @@ from flexparcel._version import __version__
 # value.
 _LAZY: dict[str, str] = {
     "mesh": "flexparcel.model.mesh",
-    "ModelBuilder": "flexparcel.model.builder",
-    "Model": "flexparcel.model.builder",
-    "State": "flexparcel.model.builder",
+    "ModelBuilder": "flexparcel.builder",
+    "Model": "flexparcel.model.model",
+    "State": "flexparcel.model.model",
     "ShellMaterial": "flexparcel.model.materials",
     "SolidMaterial": "flexparcel.elements.solid",
     "RoundedBox": "flexparcel.model.rigid",

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import time as _time
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -27,9 +28,17 @@ from flexparcel.io.checkpoint import (
     save_checkpoint,
     state_fingerprint,
 )
-from flexparcel.model.builder import Model, State
+from flexparcel.model.model import Model, State
 
-__all__ = ["SimulationResult", "FrameRecorder", "simulate", "state_energies", "output_times"]
+__all__ = [
+    "SimulationResult",
+    "FrameRecorder",
+    "Stepper",
+    "ModelStepper",
+    "simulate",
+    "state_energies",
+    "output_times",
+]
 
 
 @dataclass
@@ -127,6 +136,90 @@ class FrameRecorder:
         )
 
 
+class Stepper(ABC):
+    """What :func:`simulate` drives from output frame to output frame. The time loop owns the
+    output grid, the recorder, the checkpoint (save and resume) and progress; a stepper owns
+    how a state gets from one output time to the next.
+
+    :class:`ModelStepper` steps one model with :class:`GeneralizedAlpha`; the conveyor's
+    group-by-group integration (:mod:`flexparcel.scenarios.conveyor_groups`) is another.
+    """
+
+    mode: str = "stepper"
+    """Name written to the checkpoint header: a checkpoint resumes only with its own mode."""
+
+    @abstractmethod
+    def options_header(self) -> dict:
+        """JSON-able settings that define the run (written to and checked in checkpoints)."""
+
+    @abstractmethod
+    def begin(self, state: State) -> State:
+        """Prepare to integrate from ``state`` (consistent accelerations); returns it."""
+
+    @abstractmethod
+    def advance(self, state: State, t_out: float, progress) -> State:
+        """Integrate ``state`` to ``t_out`` [s], calling ``progress(t, t_out)`` (if given) at
+        least once, when ``t_out`` is reached."""
+
+    def after_frame(self, state: State, index: int) -> None:  # noqa: B027 (optional)
+        """Called after frame ``index`` (counted from this call of simulate) was recorded."""
+
+    @abstractmethod
+    def history(self) -> dict[str, np.ndarray]:
+        """Arrays that make a resumed run continue exactly (see :meth:`resume`)."""
+
+    @abstractmethod
+    def resume(self, state: State, history: dict[str, np.ndarray]) -> State:
+        """Continue from a checkpoint's ``state`` and :meth:`history`; returns the state."""
+
+    @abstractmethod
+    def statistics(self) -> dict:
+        """Step counts, iterations and wall time per phase [s] so far."""
+
+    def close(self) -> None:  # noqa: B027 (optional)
+        """Release workers and files; called once, also when the run fails."""
+
+
+class ModelStepper(Stepper):
+    """One model, one :class:`GeneralizedAlpha`; steps land on the load and gravity schedules'
+    breakpoints."""
+
+    mode = "one-model"
+
+    def __init__(self, model: Model, options: IntegratorOptions | None = None) -> None:
+        self.integrator = GeneralizedAlpha(model, options)
+        self._breaks = sorted(
+            {float(b) for sch in model.schedules for b in sch.breakpoints()}
+            | {float(b) for b in model.gravity_schedule.breakpoints()}
+        )
+
+    def options_header(self) -> dict:
+        return json.loads(json.dumps(asdict(self.integrator.opt)))
+
+    def begin(self, state: State) -> State:
+        self.integrator.initialize(state)
+        return state
+
+    def advance(self, state: State, t_out: float, progress) -> State:
+        s = state
+        while s.time < t_out - 1e-12 * max(1.0, abs(t_out)):
+            nxt = [b for b in self._breaks if s.time + 1e-12 < b < t_out]
+            s = self.integrator.step(s, nxt[0] if nxt else t_out)
+            if progress is not None:
+                progress(s.time, t_out)
+        return s
+
+    def history(self) -> dict[str, np.ndarray]:
+        return self.integrator.history()
+
+    def resume(self, state: State, history: dict[str, np.ndarray]) -> State:
+        self.integrator.restore_history(history)
+        return state
+
+    def statistics(self) -> dict:
+        return asdict(self.integrator.stats)
+
+
 def simulate(
     model: Model,
     t_end: float,
@@ -138,9 +231,14 @@ def simulate(
     checkpoint: str | Path | None = None,
     checkpoint_interval_s: float = 60.0,
     checkpoint_only: bool = False,
+    stepper: Stepper | None = None,
 ) -> SimulationResult:
     """Integrate ``model`` from ``state`` (default: at rest in the reference configuration)
     to ``t_end`` [s], recording every ``dt_out`` [s] (default ``t_end / 200``).
+
+    ``stepper``: how the state gets from frame to frame (default: :class:`ModelStepper` of
+    ``model`` with ``options``); this is the only time loop of flexparcel, the conveyor's
+    group-by-group integration is a stepper too. The stepper is closed at the end.
 
     ``checkpoint``: a ``.npz`` path (:mod:`flexparcel.io.checkpoint`). The run writes it at an
     output frame whenever ``checkpoint_interval_s`` [s] of wall time have passed since the
@@ -168,7 +266,17 @@ def simulate(
         )
     if checkpoint_only and checkpoint is None:
         raise ValueError("simulate: checkpoint_only needs a checkpoint path")
-    integ = GeneralizedAlpha(model, options)
+    stepper = stepper or ModelStepper(model, options)
+    try:
+        return _run(model, s, t_end, dt_out, stepper, progress, checkpoint,
+                    checkpoint_interval_s, checkpoint_only)  # fmt: skip
+    finally:
+        stepper.close()
+
+
+def _run(model, s, t_end, dt_out, stepper, progress, checkpoint, interval, checkpoint_only):
+    """The loop of :func:`simulate` (its arguments checked)."""
+    t0 = s.time
     header = None
     resumed = None
     if checkpoint is not None:
@@ -181,57 +289,47 @@ def simulate(
             "node_count": model.node_count,
             "model": model_fingerprint(model),
             "initial_state": state_fingerprint(s),
-            "options": json.loads(json.dumps(asdict(integ.opt))),
-            "mode": "one-model",  # not the conveyor's group-by-group integration
+            "options": stepper.options_header(),
+            "mode": stepper.mode,
         }
         if checkpoint_only and not Path(checkpoint).exists():
             raise FileNotFoundError(f"simulate: no checkpoint {checkpoint} to read")
         if Path(checkpoint).exists():
             resumed = load_checkpoint(checkpoint)
-            resumed.header.setdefault("mode", "one-model")  # written before groups existed
             check_same_run(
                 checkpoint, resumed.header, {k: v for k, v in header.items() if k != "version"}
             )
     wall0 = _time.perf_counter()
-    integ.initialize(s)
     out_times = output_times(t0, t_end, dt_out)
-    breaks = sorted(
-        {float(b) for sch in model.schedules for b in sch.breakpoints()}
-        | {float(b) for b in model.gravity_schedule.breakpoints()}
-    )
-    breaks = [b for b in breaks if t0 < b < t_end]
     rec = FrameRecorder(model)
-
-    def save(complete: bool) -> None:
-        frames = rec.frames()
-        hist = integ.history()
-        hist["wall_total"] = np.array(wall_before + _time.perf_counter() - wall0)
-        save_checkpoint(
-            checkpoint, RunCheckpoint({**header, "complete": complete}, frames, s, hist)
-        )
-
     wall_before = 0.0  # wall time of the run before it was resumed
     if resumed is None:
+        s = stepper.begin(s)
         rec.record(s)
     else:
         rec.extend(resumed.frames)
-        s = resumed.state
-        integ.restore_history(resumed.history)
+        s = stepper.resume(resumed.state, resumed.history)
         wall_before = float(resumed.history.get("wall_total", 0.0))
         out_times = out_times[out_times > s.time + 1e-12 * max(1.0, abs(s.time))]
         if checkpoint_only:
             out_times = out_times[:0]
+
+    def save(complete: bool) -> None:
+        hist = stepper.history()
+        hist["wall_total"] = np.array(wall_before + _time.perf_counter() - wall0)
+        save_checkpoint(
+            checkpoint, RunCheckpoint({**header, "complete": complete}, rec.frames(), s, hist)
+        )
+
+    step_progress = None if progress is None else (lambda t, _t_out: progress(t, t_end))
     last_save = _time.perf_counter()
-    for t_out in out_times:
-        while s.time < t_out - 1e-12 * max(1.0, abs(t_out)):
-            nxt = [b for b in breaks if s.time + 1e-12 < b < t_out]
-            s = integ.step(s, nxt[0] if nxt else t_out)
-            if progress is not None:
-                progress(s.time, t_end)
+    for i, t_out in enumerate(out_times):
+        s = stepper.advance(s, t_out, step_progress)
         s.time = float(t_out)  # remove round-off drift so outputs sit on the grid
         rec.record(s)
+        stepper.after_frame(s, i)
         if checkpoint is not None and t_out != out_times[-1]:
-            if _time.perf_counter() - last_save >= checkpoint_interval_s:
+            if _time.perf_counter() - last_save >= interval:
                 save(complete=False)
                 last_save = _time.perf_counter()
     if (
@@ -241,8 +339,8 @@ def simulate(
     ):
         save(complete=True)
     wall = wall_before + _time.perf_counter() - wall0
-    st = asdict(integ.stats)
-    st["wall_s"]["total"] = wall
+    st = stepper.statistics()
+    st.setdefault("wall_s", {})["total"] = wall
     st["dof_count"] = model.dof_count
     st["simulated_s"] = float(t_end - t0)
     return rec.result(s, st)

@@ -13,12 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
+from flexparcel.builder import ModelBuilder
 from flexparcel.data import VERIFICATION_DIR
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.static import solve_static
 from flexparcel.model import mesh
-from flexparcel.model.builder import Model, ModelBuilder
 from flexparcel.model.materials import ShellMaterial
+from flexparcel.model.model import Model
 
 __all__ = [
     "REFERENCE_DIR",

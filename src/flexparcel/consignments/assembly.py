@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from flexparcel.builder import ModelBuilder
 from flexparcel.consignments.build import (
     Consignment,
     ConsignmentBuild,
@@ -35,10 +36,11 @@ from flexparcel.consignments.build import (
 )
 from flexparcel.consignments.snapshot import Snapshot
 from flexparcel.contact.law import ContactLaw
+from flexparcel.elements.solid import SolidGroup
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.dynamic import IntegratorOptions
-from flexparcel.model.builder import Model, ModelBuilder, State
 from flexparcel.model.mesh import surface_triangles
+from flexparcel.model.model import Model, State
 from flexparcel.model.schedule import Schedule
 from flexparcel.simulate import simulate
 
@@ -241,11 +243,16 @@ def content_scale_for(build: ConsignmentBuild) -> float:
     return 0.6 if slack < 3.0 * hc else 1.0
 
 
+def _solid_groups(model: Model) -> list[SolidGroup]:
+    """The model's solid element groups (a flexible content), in the order they were added."""
+    return [g for g in model.element_groups if isinstance(g, SolidGroup)]
+
+
 def _scale_content(
     model: Model, c: Consignment, s: State | None, f: float | Schedule, xref_full: list
 ) -> None:
     """Give the content ``f`` times its size (a number or a Schedule of it): a rigid content
-    through ``Model.box_growth``, a flexible one through ``Model.solid_growth`` (its elements'
+    through ``Model.box_growth``, a flexible one through its solid groups' ``growth`` (their
     full-size reference geometry ``xref_full``, one array per solid group, scaled at every
     step: a jump would shock the elements and their contacts) and, if ``s`` is given, its
     nodes about the content centre (by ``f`` at ``s.time``)."""
@@ -254,10 +261,10 @@ def _scale_content(
         outer = np.asarray(c.content_box, dtype=float) / 2
         model.box_growth[:] = [(c.content_body, outer, sched)]
         return
-    model.solid_growth[:] = [(i, x, sched) for i, x in enumerate(xref_full)]
     t = 0.0 if s is None else s.time
-    for g, xref0 in zip(model.solid_groups, xref_full, strict=True):
-        g["xref"] = np.ascontiguousarray(xref0 * sched(t))
+    for g, xref0 in zip(_solid_groups(model), xref_full, strict=True):
+        g.growth = (xref0, sched)
+        g.at_time(t)
     if s is not None:
         p = s.positions[c.content_nodes]
         centre = 0.5 * (p.min(axis=0) + p.max(axis=0))
@@ -359,7 +366,7 @@ def assemble(
     f0 = content_scale_for(build) if st.content_scale is None else st.content_scale
     opening = _opening_schedule(st)
     model_a, c = _model(build, st, False, opening, "none")
-    xref_full = [g["xref"].copy() for g in model_a.solid_groups]
+    xref_full = [g.xref.copy() for g in _solid_groups(model_a)]
     s = model_a.initial_state()
     if f0 < 1.0:
         _scale_content(model_a, c, s, f0, xref_full)

@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from flexparcel.builder import ModelBuilder
 from flexparcel.consignments.materials import (
     FLEXIBLE_CONTENT,
     PackagingMaterial,
@@ -36,7 +37,6 @@ from flexparcel.consignments.materials import (
 from flexparcel.consignments.spec import ConsignmentSpec
 from flexparcel.contact.law import ContactLaw
 from flexparcel.elements.solid import SolidMaterial, solid_reference_data
-from flexparcel.model.builder import ModelBuilder
 from flexparcel.model.materials import ShellMaterial
 from flexparcel.model.rigid import RoundedBox
 from flexparcel.model.schedule import Schedule

@@ -18,7 +18,7 @@ import numpy as np
 from flexparcel import __version__
 from flexparcel.consignments.build import ConsignmentBuild
 from flexparcel.io.atomic import write_atomic
-from flexparcel.model.builder import Model, State
+from flexparcel.model.model import Model, State
 
 __all__ = ["SNAPSHOT_FORMAT", "Snapshot", "save_snapshot", "load_snapshot", "place_snapshot"]
 

@@ -35,11 +35,13 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flexparcel.contact.common import StickAnchors, pair_blocks
 from flexparcel.contact.geometry import point_box_contact_derivs
 from flexparcel.contact.law import P_K_T, P_MAX_PEN, contact_friction, normal_force_packed
 from flexparcel.elements.rotations import skew
+from flexparcel.model.interfaces import ContactSet, row_keys
 
-__all__ = ["box_contact_forces", "edge_box_forces"]
+__all__ = ["box_contact_forces", "edge_box_forces", "NodeBoxSet", "EdgeBoxSet"]
 
 
 @nb.njit(cache=True)
@@ -288,3 +290,77 @@ def edge_box_forces(
         if touched:
             _box_dofs(out_dofs, e, edges[e], box)
     return n_contact, deepest, worst
+
+
+class NodeBoxSet(ContactSet):
+    """Shell nodes (contact radius [m]) against the rounded box of one rigid body, e.g. a
+    packaging on its content. History: the stick model's anchors (body frame) per node."""
+
+    kind = "node_box"
+
+    def __init__(self, nodes, box: int, radius: float, law, schedule) -> None:
+        super().__init__(law, schedule)
+        self.node = np.ascontiguousarray(nodes, dtype=np.int64)
+        """Shell nodes, shape (Q,)."""
+        self.box = int(box)
+        """The rigid body's node."""
+        self.radius = float(radius)
+        self.anchors = StickAnchors(self.node.size)
+
+    def evaluate(self, ctx, state, out) -> None:
+        q = self.node.size
+        bk, bc, dofs = pair_blocks(q, 9)
+        n_contact, depth, _, ratio = box_contact_forces(
+            self.node, np.full(q, self.box), np.full(q, self.radius), np.zeros(q, np.int64),
+            np.full(q, ctx.factors[self.schedule_index]), ctx.box_half,
+            ctx.model.box_radius_by_node, ctx.laws[self.law_index : self.law_index + 1],
+            state.positions, state.rotations, state.velocities, out.forces, bk, bc, dofs,
+            ctx.node_mass, ctx.impact_speed, ctx.w2, *self.anchors.kernel_args(),
+            ctx.start.positions, ctx.start.rotations,
+        )  # fmt: skip
+        out.coupled_blocks.append((bk, bc, dofs))
+        out.merge(n_contact, depth, ratio)
+
+    def commit(self) -> None:
+        self.anchors.commit()
+
+    def history(self) -> dict[str, np.ndarray]:
+        return self.anchors.history()
+
+    def restore_history(self, history) -> None:
+        self.anchors.restore(history)
+
+    def history_rows(self, numbering) -> np.ndarray:
+        cols = np.column_stack([numbering[self.node], np.full(self.node.size, numbering[self.box])])
+        return row_keys(self.kind, cols)
+
+    def nodes(self) -> np.ndarray:
+        return np.union1d(self.node, [self.box])
+
+
+class EdgeBoxSet(ContactSet):
+    """Line contact of shell edges (E, 2) against the rounded box of one rigid body, each
+    edge sampled at ``samples`` stations (a packaging's border on its content's edges)."""
+
+    kind = "edge_box"
+
+    def __init__(self, edges, box: int, radius: float, samples: int, law, schedule) -> None:
+        super().__init__(law, schedule)
+        self.edges = np.ascontiguousarray(edges, dtype=np.int64)
+        self.box = int(box)
+        self.radius = float(radius)
+        self.samples = int(samples)
+
+    def evaluate(self, ctx, state, out) -> None:
+        ek, ec, dofs = pair_blocks(self.edges.shape[0], 12)
+        n_contact, depth, ratio = edge_box_forces(
+            self.edges, self.box, self.radius, self.samples, ctx.laws[self.law_index],
+            ctx.factors[self.schedule_index], ctx.box_half, ctx.model.box_radius_by_node,
+            state.positions, state.rotations, state.velocities, out.forces, ek, ec, dofs,
+            ctx.node_mass, ctx.impact_speed, ctx.w2,
+        )  # fmt: skip
+        out.coupled_blocks.append((ek, ec, dofs))
+        out.merge(n_contact, depth, ratio)
+
+    def nodes(self) -> np.ndarray:
+        return np.union1d(self.edges.ravel(), [self.box])

@@ -28,10 +28,13 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flexparcel.contact.broadphase import segment_segment_candidates
+from flexparcel.contact.common import pair_blocks
 from flexparcel.contact.geometry import segment_segment, segment_segment_param_derivs
 from flexparcel.contact.law import P_MAX_PEN, friction_force_packed, normal_force_packed
+from flexparcel.model.interfaces import ContactSet
 
-__all__ = ["edge_edge_sides", "edge_edge_forces"]
+__all__ = ["edge_edge_sides", "edge_edge_forces", "EdgeEdgeSet"]
 
 
 @nb.njit(cache=True)
@@ -149,3 +152,39 @@ def edge_edge_forces(
         out_k[k] = fk
         out_c[k] = fc
     return n_contact, deepest, worst
+
+
+class EdgeEdgeSet(ContactSet):
+    """Edge-to-edge line contact of edges a (Ea, 2) against edges b (Eb, 2), ``thickness``
+    [m] the sum of the two edges' radii (a deflector's tip against packaging element edges).
+    Candidates once per step; each pair keeps the direction it started the step in."""
+
+    kind = "edge_edge"
+
+    def __init__(self, edges_a, edges_b, thickness: float, law, schedule) -> None:
+        super().__init__(law, schedule)
+        self.edges_a = np.ascontiguousarray(edges_a, dtype=np.int64)
+        self.edges_b = np.ascontiguousarray(edges_b, dtype=np.int64)
+        self.thickness = float(thickness)
+        self.candidates = (np.zeros((0, 2), np.int64), np.zeros((0, 3)))
+
+    def prepare(self, ctx, start, step) -> None:
+        pos = start.positions
+        pairs = segment_segment_candidates(
+            self.edges_a, self.thickness, self.edges_b, pos, ctx.reach
+        )
+        self.candidates = (pairs, edge_edge_sides(pairs, self.edges_a, self.edges_b, pos))
+
+    def evaluate(self, ctx, state, out) -> None:
+        pairs, sides = self.candidates
+        ek, ec, dofs = pair_blocks(pairs.shape[0], 12)
+        n_contact, depth, ratio = edge_edge_forces(
+            pairs, sides, self.edges_a, self.edges_b, self.thickness, ctx.laws[self.law_index],
+            ctx.factors[self.schedule_index], state.positions, state.velocities, out.forces,
+            ek, ec, dofs, ctx.node_mass, ctx.impact_speed, ctx.w2,
+        )  # fmt: skip
+        out.coupled_blocks.append((ek, ec, dofs))
+        out.merge(n_contact, depth, ratio)
+
+    def nodes(self) -> np.ndarray:
+        return np.union1d(self.edges_a.ravel(), self.edges_b.ravel())

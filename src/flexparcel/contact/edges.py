@@ -12,9 +12,11 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flexparcel.contact.common import pair_blocks
 from flexparcel.contact.law import P_MAX_PEN, friction_force_packed, normal_force_packed
+from flexparcel.model.interfaces import ContactSet
 
-__all__ = ["edge_plane_forces"]
+__all__ = ["edge_plane_forces", "EdgePlaneSet"]
 
 
 @nb.njit(cache=True)
@@ -86,3 +88,32 @@ def edge_plane_forces(
                             out_k[e, 3 * a + r, 3 * b + c] += w[a] * w[b] * kx[r, c]
                             out_c[e, 3 * a + r, 3 * b + c] += w[a] * w[b] * kv[r, c]
     return n_contact, deepest, worst
+
+
+class EdgePlaneSet(ContactSet):
+    """Line contact of shell edges (E, 2) against one rigid plane, each edge sampled at
+    ``samples`` stations (an envelope standing on its glued border)."""
+
+    kind = "edge_plane"
+
+    def __init__(self, edges, plane: int, radius: float, samples: int, law, schedule) -> None:
+        super().__init__(law, schedule)
+        self.edges = np.ascontiguousarray(edges, dtype=np.int64)
+        self.plane = int(plane)
+        self.radius = float(radius)
+        self.samples = int(samples)
+
+    def evaluate(self, ctx, state, out) -> None:
+        m, k = ctx.model, self.plane
+        ek, ec, dofs = pair_blocks(self.edges.shape[0], 6)
+        n_contact, depth, ratio = edge_plane_forces(
+            self.edges, m.plane_point[k], m.plane_normal[k], m.plane_velocity[k], self.radius,
+            self.samples, ctx.laws[self.law_index], ctx.factors[self.schedule_index],
+            state.positions, state.velocities, out.forces, ek, ec, dofs, ctx.node_mass,
+            ctx.impact_speed, ctx.w2,
+        )  # fmt: skip
+        out.coupled_blocks.append((ek, ec, dofs))
+        out.merge(n_contact, depth, ratio)
+
+    def nodes(self) -> np.ndarray:
+        return np.unique(self.edges)

@@ -64,6 +64,7 @@ import numba as nb
 import numpy as np
 
 from flexparcel.model.checks import finite_number
+from flexparcel.model.model import PACKED_LAW_SIZE
 
 __all__ = [
     "ContactLaw",
@@ -123,7 +124,7 @@ P_V_D = 11
 P_MAX_PEN = 12
 P_K_T = 13
 P_SLIP_TANGENT = 14
-PACKED_SIZE = 15
+PACKED_SIZE = PACKED_LAW_SIZE  # the ground sizes empty law tables with it
 
 # mm -> m. RecurDyn's N-kg-mm-s unit set differs from SI only in length.
 _MM = 1.0e-3

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flexparcel.contact.common import check_history
 from flexparcel.contact.law import (
     P_K_T,
     P_MAX_PEN,
@@ -32,8 +33,9 @@ from flexparcel.contact.law import (
     stick_friction_packed,
 )
 from flexparcel.elements.rotations import skew
+from flexparcel.model.interfaces import ContactSet, row_keys
 
-__all__ = ["plane_contact_forces"]
+__all__ = ["plane_contact_forces", "PlanePointSet"]
 
 
 @nb.njit(cache=True)
@@ -169,3 +171,61 @@ def plane_contact_forces(
             for j in range(3):
                 out_dq[q, 3 + i, 3 + j] += extra[i, j]
     return n_contact, deepest, deepest_pt, worst_ratio
+
+
+class PlanePointSet(ContactSet):
+    """Contact points on one rigid plane: shell nodes with a contact radius, or the corners of
+    a rigid body's rounded box (their offsets in the body frame, the edge radius as radius).
+
+    History: the stick model's elastic slip ``u_el`` (P, 3) per point [m].
+    """
+
+    kind = "plane"
+
+    def __init__(self, nodes, offsets, radii, plane: int, law, schedule) -> None:
+        super().__init__(law, schedule)
+        self.node = np.ascontiguousarray(nodes, dtype=np.int64)
+        """Node of each contact point, shape (P,)."""
+        self.offset = np.ascontiguousarray(offsets, dtype=float).reshape(-1, 3)
+        """Body-frame offset of each point from its node [m], shape (P, 3)."""
+        self.radius = np.ascontiguousarray(radii, dtype=float)
+        """Radius of each point [m], shape (P,)."""
+        self.plane = int(plane)
+        self.u_el = np.zeros((self.node.size, 3))
+        self.u_el_trial = self.u_el.copy()
+
+    def evaluate(self, ctx, state, out) -> None:
+        m = ctx.model
+        p = self.node.size
+        dq = np.zeros((p, 6, 6))
+        dv = np.zeros((p, 6, 6))
+        n_contact, depth, point, ratio = plane_contact_forces(
+            self.node, self.offset, self.radius, np.full(p, self.plane), np.zeros(p, np.int64),
+            np.full(p, ctx.factors[self.schedule_index]), m.plane_point, m.plane_normal,
+            m.plane_velocity, ctx.laws[self.law_index : self.law_index + 1], state.positions,
+            state.rotations, state.velocities, out.forces, dq, dv, ctx.node_mass,
+            ctx.impact_speed, ctx.w2, self.u_el, self.u_el_trial, ctx.step,
+            ctx.start.positions, ctx.start.rotations,
+        )  # fmt: skip
+        out.node_blocks.append((self.node, dq, dv))
+        out.merge(n_contact, depth, ratio, int(self.node[point]) if point >= 0 else -1)
+
+    def begin_step(self) -> None:
+        self.u_el_trial = np.zeros_like(self.u_el)  # points out of contact lose their spring
+
+    def commit(self) -> None:
+        self.u_el = self.u_el_trial.copy()
+
+    def history(self) -> dict[str, np.ndarray]:
+        return {"u_el": self.u_el}
+
+    def restore_history(self, history) -> None:
+        self.u_el = check_history(history, "u_el", self.u_el)
+
+    def history_rows(self, numbering) -> np.ndarray:
+        cols = np.column_stack([numbering[self.node], np.full(self.node.size, self.plane),
+                                self.offset])  # fmt: skip
+        return row_keys(self.kind, cols)
+
+    def nodes(self) -> np.ndarray:
+        return np.unique(self.node)

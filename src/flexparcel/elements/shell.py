@@ -33,8 +33,10 @@ import numba as nb
 import numpy as np
 
 from flexparcel.elements.rotations import matmul, rotation_log, skew, tangent_inv
+from flexparcel.model.interfaces import ElementGroup
 
 __all__ = [
+    "ShellGroup",
     "DRILLING_ALPHA",
     "local_stiffness",
     "reference_frames",
@@ -403,3 +405,126 @@ def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, 
                 for j in range(18):
                     data_c[emap[e, i, j]] += ce[i, j]
     return energy
+
+
+# --------------------------------------------------------------------------- element group
+class ShellGroup(ElementGroup):
+    """Flat shell triangles (CST membrane + DKT bending + drilling penalty, co-rotational),
+    quads split into four half-weight triangles; 6 DOFs per node.
+
+    Build it with :meth:`from_mesh`; groups of several meshes are joined by
+    :meth:`concatenate` so that one kernel call covers every shell of a model.
+    """
+
+    kind = "shell"
+
+    def __init__(self, triangles, kl, xloc, frame0, beta, node_mass, node_inertia) -> None:
+        self.triangles = np.ascontiguousarray(triangles, dtype=np.int64)
+        """Triangles used by the kernels, shape (m, 3)."""
+        self.kl = kl
+        """Local linear stiffness per triangle [SI], shape (m, 18, 18)."""
+        self.xloc = xloc
+        """Reference local centroidal corner coordinates [m], shape (m, 3, 2)."""
+        self.frame0 = frame0
+        """Reference element frames, shape (m, 3, 3) (columns e1, e2, e3)."""
+        self.beta = beta
+        """Rayleigh stiffness-proportional damping beta [s] per triangle, shape (m,)."""
+        self._node_mass = node_mass  # (m,) mass [kg] each corner of a triangle gets
+        self._node_inertia = node_inertia  # (m,) rotary inertia [kg m^2] each corner gets
+        self.emap = np.zeros((len(self.triangles), 18, 18), np.int64)
+        """CSR data slot of each element matrix entry, shape (m, 18, 18)."""
+
+    @classmethod
+    def from_mesh(cls, points: np.ndarray, triangles, weights, material) -> ShellGroup:
+        """Triangles (m, 3) of global node ids into ``points`` (n, 3) [m] with weights (m,)
+        (0.5 for the four triangles of a split quad) and one ShellMaterial."""
+        tri = np.asarray(triangles, dtype=np.int64)
+        w = np.asarray(weights, dtype=float)
+        frames, xloc = reference_frames(points, tri)
+        # structured meshes repeat a few triangle shapes: compute each shape once (the
+        # local stiffness depends only on the local corner coordinates and the material)
+        _, first, which = np.unique(
+            np.round(xloc.reshape(len(tri), 6), 12), axis=0, return_index=True,
+            return_inverse=True,
+        )  # fmt: skip
+        k_shape = np.array([
+            local_stiffness(xloc[e], material.youngs_modulus, material.poisson_ratio,
+                            material.thickness)
+            for e in first
+        ])  # fmt: skip
+        kl = w[:, None, None] * k_shape[which.ravel()]
+        area = 0.5 * np.abs(
+            (xloc[:, 1, 0] - xloc[:, 0, 0]) * (xloc[:, 2, 1] - xloc[:, 0, 1])
+            - (xloc[:, 2, 0] - xloc[:, 0, 0]) * (xloc[:, 1, 1] - xloc[:, 0, 1])
+        )
+        # lumped mass: a third of each triangle's mass to each corner; isotropic rotational
+        # inertia rho t^3/12 per area (the plate's, also used for the drilling axis)
+        rho_t = material.density * material.thickness
+        m_node = rho_t * area * w / 3.0
+        j_node = rho_t * material.thickness**2 / 12.0 * area * w / 3.0
+        beta = np.full(len(tri), float(material.damping_ratio))
+        return cls(tri, kl, xloc, frames, beta, m_node, j_node)
+
+    @classmethod
+    def concatenate(cls, groups: list[ShellGroup]) -> ShellGroup:
+        """One group holding the triangles of ``groups`` in order."""
+
+        def cat(name):
+            return np.concatenate([getattr(g, name) for g in groups])
+
+        return cls(cat("triangles"), cat("kl"), cat("xloc"), cat("frame0"), cat("beta"),
+                   cat("_node_mass"), cat("_node_inertia"))  # fmt: skip
+
+    def renumber(self, offset: int) -> None:
+        """Raise the node ids by ``offset`` (from mesh-local to model numbering)."""
+        self.triangles = self.triangles + int(offset)
+
+    def element_dofs(self) -> np.ndarray:
+        m = len(self.triangles)
+        return (6 * self.triangles[:, :, None] + np.arange(6)).reshape(m, 18)
+
+    def bind(self, slots: np.ndarray) -> None:
+        self.emap = np.ascontiguousarray(slots.reshape(-1, 18, 18))
+
+    def lumped_mass(self, node_count: int) -> np.ndarray:
+        mass = np.zeros((node_count, 6))
+        for a in range(3):
+            np.add.at(mass[:, 0], self.triangles[:, a], self._node_mass)
+            np.add.at(mass[:, 3], self.triangles[:, a], self._node_inertia)
+        mass[:, 1] = mass[:, 2] = mass[:, 0]
+        mass[:, 4] = mass[:, 5] = mass[:, 3]
+        return mass
+
+    def nodes(self) -> np.ndarray:
+        return np.unique(self.triangles)
+
+    def rotation_nodes(self) -> np.ndarray:
+        return self.nodes()
+
+    def _data(self) -> tuple:
+        return self.triangles, self.kl, self.xloc, self.frame0, self.beta
+
+    def forces(self, positions, rotations, velocities, out) -> float:
+        return element_forces(*self._data(), positions, rotations, velocities, out)
+
+    def forces_and_tangent(
+        self, positions, rotations, velocities, out, data_k, data_c, consistent
+    ) -> float:
+        kernel = element_tangents if consistent else material_tangents
+        return kernel(*self._data(), positions, rotations, velocities, out, data_k, data_c,
+                      self.emap)  # fmt: skip
+
+    def node_pairs(self) -> np.ndarray:
+        t = self.triangles
+        return np.column_stack([t.ravel(), np.roll(t, -1, axis=1).ravel()])
+
+    def fingerprint_arrays(self) -> list[np.ndarray]:
+        return [np.array(self.kind), self.triangles, self.xloc, self.beta]
+
+    def characteristic_length(self) -> float | None:
+        x = self.xloc
+        area = 0.5 * np.abs(
+            (x[:, 1, 0] - x[:, 0, 0]) * (x[:, 2, 1] - x[:, 0, 1])
+            - (x[:, 2, 0] - x[:, 0, 0]) * (x[:, 1, 1] - x[:, 0, 1])
+        )
+        return float(np.sqrt(np.mean(area))) if area.size else None

@@ -98,9 +98,11 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
+from flexparcel.model.interfaces import ElementGroup
 from flexparcel.model.materials import validate_elastic
 
 __all__ = [
+    "SolidGroup",
     "ELEMENT_KINDS",
     "SolidMaterial",
     "SolidReference",
@@ -729,3 +731,90 @@ def scatter_forces(cells, fe, out):
         for a in range(k):
             for i in range(3):
                 out[cells[e, a], i] += fe[e, 3 * a + i]
+
+
+# --------------------------------------------------------------------------- element group
+class SolidGroup(ElementGroup):
+    """A block of co-rotational solid elements of one kind and material; 3 translational
+    DOFs per node (the nodes' rotations carry nothing of it).
+
+    ``growth`` (full-size ``xref`` (m, k, 3) [m], Schedule of the scale factor) or None: the
+    assembly grows a flexible content into its packaging by scaling the reference geometry
+    at every step (:meth:`at_time`), so the elements expand smoothly.
+    """
+
+    kind = "solid"
+
+    def __init__(self, points: np.ndarray, cells, kind: str, material: SolidMaterial) -> None:
+        ref = solid_reference_data(points, cells, kind, material)  # validates its input
+        self.element_kind = _normalise_kind(kind)
+        """"hex8", "wedge6", "pyr5" or "tet4"."""
+        self.cells = np.ascontiguousarray(cells, dtype=np.int64)
+        """Node ids per element in VTK order, shape (m, k)."""
+        self.kl, self.xref, self.grad = ref.kl, ref.xref, ref.grad
+        self.mass = ref.mass
+        """Lumped mass [kg] per element corner, shape (m, k)."""
+        self.beta = np.full(len(self.cells), float(material.damping_ratio))
+        w = 3 * self.cells.shape[1]
+        self.emap = np.zeros((len(self.cells), w, w), np.int64)
+        """CSR data slot of each element matrix entry, shape (m, 3k, 3k)."""
+        self.growth = None
+
+    def renumber(self, offset: int) -> None:
+        """Raise the node ids by ``offset`` (from mesh-local to model numbering)."""
+        self.cells = self.cells + int(offset)
+
+    def element_dofs(self) -> np.ndarray:
+        m, k = self.cells.shape
+        return (6 * self.cells[:, :, None] + np.arange(3)).reshape(m, 3 * k)
+
+    def bind(self, slots: np.ndarray) -> None:
+        self.emap = np.ascontiguousarray(slots)
+
+    def lumped_mass(self, node_count: int) -> np.ndarray:
+        mass = np.zeros((node_count, 6))
+        for a in range(self.cells.shape[1]):
+            np.add.at(mass[:, 0], self.cells[:, a], self.mass[:, a])
+        mass[:, 1] = mass[:, 2] = mass[:, 0]
+        return mass
+
+    def nodes(self) -> np.ndarray:
+        return np.unique(self.cells)
+
+    def at_time(self, time: float) -> None:
+        if self.growth is not None:
+            full, schedule = self.growth
+            self.xref = np.ascontiguousarray(full * schedule(time))
+
+    def _evaluate(self, positions, velocities, out, data_k, data_c) -> float:
+        m, k = self.cells.shape
+        pos = np.ascontiguousarray(positions)
+        vel = np.ascontiguousarray(velocities[:, :3])
+        fe = np.empty((m, 3 * k))
+        en = np.empty(m)
+        vr = np.empty(m)
+        args = (self.cells, self.kl, self.xref, self.grad, self.beta, pos, vel, fe, en, vr)
+        if data_k is None:
+            solid_forces(*args)
+        else:
+            ke = np.empty((m, 3 * k, 3 * k))
+            solid_material_tangents(*args, ke)
+            np.add.at(data_k, self.emap.ravel(), ke.ravel())
+            np.add.at(data_c, self.emap.ravel(), (self.beta[:, None, None] * ke).ravel())
+        f3 = np.zeros((out.shape[0], 3))
+        scatter_forces(self.cells, fe, f3)
+        out[:, :3] += f3
+        if np.any(vr <= 0.0):
+            # an inverted element has no meaningful force: poison the residual so the solver
+            # rejects the step (and retries smaller) instead of continuing
+            out[:] = np.nan
+        return float(en.sum())
+
+    def forces(self, positions, rotations, velocities, out) -> float:
+        return self._evaluate(positions, velocities, out, None, None)
+
+    def forces_and_tangent(
+        self, positions, rotations, velocities, out, data_k, data_c, consistent
+    ) -> float:
+        # the material tangent in both modes (no consistent one yet, see the module docstring)
+        return self._evaluate(positions, velocities, out, data_k, data_c)

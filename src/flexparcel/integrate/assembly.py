@@ -9,9 +9,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from flexparcel.elements import shell
 from flexparcel.elements.rotations import skew
-from flexparcel.model.builder import Model
+from flexparcel.model.model import Model
 
 __all__ = [
     "internal_forces",
@@ -31,59 +30,22 @@ __all__ = [
 ]
 
 
-def _shell_data(model: Model) -> tuple:
-    """The static per-triangle arrays every shell kernel takes first."""
-    return model.triangles, model.tri_kl, model.tri_xloc, model.tri_frame0, model.tri_beta
-
-
 def internal_forces(model: Model, positions, rotations, velocities) -> tuple[np.ndarray, float]:
-    """Internal (elastic + Rayleigh damping) nodal forces (n, 6) [N, N m] and strain energy [J]."""
+    """Internal (elastic + Rayleigh damping) nodal forces (n, 6) [N, N m] and strain energy [J]
+    of every element group."""
     out = np.zeros((model.node_count, 6))
-    energy = shell.element_forces(*_shell_data(model), positions, rotations, velocities, out)
-    energy += _solid_forces(model, positions, velocities, out, None, None)
-    return out, energy
-
-
-def _solid_forces(model: Model, positions, velocities, out, data_k, data_c) -> float:
-    """Add the solid elements' forces to ``out`` (n, 6) and, if ``data_k`` is given, their
-    material tangents (and beta times them into ``data_c``); returns their strain energy."""
-    if not model.solid_groups:
-        return 0.0
-    from flexparcel.elements import solid
-
-    pos = np.ascontiguousarray(positions)
-    vel = np.ascontiguousarray(velocities[:, :3])
-    f3 = np.zeros((model.node_count, 3))
     energy = 0.0
-    for g in model.solid_groups:
-        m, k = g["cells"].shape
-        fe = np.empty((m, 3 * k))
-        en = np.empty(m)
-        vr = np.empty(m)
-        args = (g["cells"], g["kl"], g["xref"], g["grad"], g["beta"], pos, vel, fe, en, vr)
-        if data_k is None:
-            solid.solid_forces(*args)
-        else:
-            ke = np.empty((m, 3 * k, 3 * k))
-            solid.solid_material_tangents(*args, ke)
-            np.add.at(data_k, g["emap"].ravel(), ke.ravel())
-            np.add.at(data_c, g["emap"].ravel(), (g["beta"][:, None, None] * ke).ravel())
-        if np.any(vr <= 0.0):
-            # an inverted element has no meaningful force: poison the residual so the solver
-            # rejects the step (and retries smaller) instead of continuing
-            out[:] = np.nan
-        solid.scatter_forces(g["cells"], fe, f3)
-        energy += float(en.sum())
-    out[:, :3] += f3
-    return energy
+    for group in model.element_groups:
+        energy += group.forces(positions, rotations, velocities, out)
+    return out, energy
 
 
 def internal_forces_and_tangent(
     model: Model, positions, rotations, velocities, consistent: bool = True
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Forces (n, 6), CSR data (nnz + 1,) of the stiffness ``K = dF/dq`` and of the damping
-    ``C = dF/dv``, and the strain energy [J]. ``consistent=False`` gives the material
-    stiffness ``B^T K_l B`` instead of the exact (complex-step) derivative.
+    ``C = dF/dv``, and the strain energy [J]. ``consistent=False`` lets a group give its
+    material stiffness instead of the exact derivative (see each group's kernels).
 
     The last data entry is a trash slot collecting fixed-DOF entries; drop it with
     :func:`csr_from_data`.
@@ -91,19 +53,11 @@ def internal_forces_and_tangent(
     out = np.zeros((model.node_count, 6))
     data_k = np.zeros(model.nnz + 1)
     data_c = np.zeros(model.nnz + 1)
-    kernel = shell.element_tangents if consistent else shell.material_tangents
-    energy = kernel(
-        *_shell_data(model),
-        positions,
-        rotations,
-        velocities,
-        out,
-        data_k,
-        data_c,
-        model.tri_emap,
-    )
-    # solids contribute their material tangent in both modes (no consistent one yet)
-    energy += _solid_forces(model, positions, velocities, out, data_k, data_c)
+    energy = 0.0
+    for group in model.element_groups:
+        energy += group.forces_and_tangent(
+            positions, rotations, velocities, out, data_k, data_c, consistent
+        )
     return out, data_k, data_c, energy
 
 

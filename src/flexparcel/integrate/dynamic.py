@@ -37,18 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from flexparcel.contact.bodies import box_contact_forces, edge_box_forces
-from flexparcel.contact.broadphase import point_triangle_candidates, segment_segment_candidates
-from flexparcel.contact.edge_edge import edge_edge_forces, edge_edge_sides
-from flexparcel.contact.edges import edge_plane_forces
-from flexparcel.contact.faces import (
-    edge_face_forces,
-    edge_stations,
-    face_contact_forces,
-    face_sides,
-)
 from flexparcel.contact.law import P_SLIP_TANGENT
-from flexparcel.contact.planes import plane_contact_forces
 from flexparcel.elements.rotations import (
     apply_spins,
     relative_rotation_vectors,
@@ -57,7 +46,8 @@ from flexparcel.elements.rotations import (
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.errors import ConvergenceError
 from flexparcel.integrate.linear import SingularMatrixError, make_linear_solver
-from flexparcel.model.builder import Model, State
+from flexparcel.model.interfaces import ContactContext, ContactOutput
+from flexparcel.model.model import Model, State
 
 __all__ = ["IntegratorOptions", "Stats", "GeneralizedAlpha"]
 
@@ -213,52 +203,19 @@ class Stats:
     )
 
 
-def _box_half_at(m: Model, t: float) -> np.ndarray:
-    """Inner half sizes of the rounded boxes at time ``t`` (``Model.box_growth`` applied)."""
-    if not m.box_growth:
-        return m.box_half_by_node
-    half = m.box_half_by_node.copy()
-    for node, outer, schedule in m.box_growth:
-        f = schedule(t)
-        scaled = np.asarray(outer, dtype=float) * f
-        half[node] = np.maximum(scaled - m.box_radius_by_node[node], 0.0)
-    return half
+CONTACT_HISTORY = "contact"
+"""Prefix of the contact sets' arrays in :meth:`GeneralizedAlpha.history`."""
 
 
-def _pair_blocks(count: int, width: int):
-    """Zeroed outputs of a coupled contact kernel: position and velocity blocks (count, width,
-    width) and DOF numbers (count, width)."""
-    return (np.zeros((count, width, width)), np.zeros((count, width, width)),
-            np.zeros((count, width), dtype=np.int64))  # fmt: skip
-
-
-def _merged(info, n_contact, depth, ratio):
-    """Contact info (count, deepest penetration, its point, worst ratio to max penetration)
-    with one more kernel's count, depth and ratio."""
-    return (info[0] + n_contact, max(info[1], depth), info[2], max(info[3], ratio))
-
-
-class _StickAnchors:
-    """Stick-model history of coupled contacts (node-box pairs, node-face sets): an anchor
-    point (3,) per contact and whether it holds one. The kernels read the committed anchors of
-    the last accepted step and write each evaluation's anchors to the trial arrays (a contact
-    out of touch writes none, so it loses its spring); :meth:`commit` keeps the trial of the
-    accepted step."""
-
-    def __init__(self, count: int) -> None:
-        self.anchor = np.zeros((count, 3))
-        self.has = np.zeros(count)
-        self.anchor_trial = np.zeros((count, 3))
-        self.has_trial = np.zeros(count)
-
-    def kernel_args(self):
-        return self.anchor, self.has, self.anchor_trial, self.has_trial
-
-    def commit(self) -> None:
-        # swap, not copy: the kernels rewrite every trial flag at each evaluation, so the old
-        # committed arrays can serve as the next trial
-        self.anchor, self.anchor_trial = self.anchor_trial, self.anchor
-        self.has, self.has_trial = self.has_trial, self.has
+def _adjacent_keys(model: Model) -> np.ndarray:
+    """Sorted keys ``a * n + b`` (both orders) of node pairs joined by an element edge, for
+    the filter that keeps a point off the faces next to it in its own mesh."""
+    pairs = [g.node_pairs() for g in model.element_groups]
+    pairs = np.concatenate(pairs) if pairs else np.zeros((0, 2), np.int64)
+    if not (model.contact_sets and pairs.size):
+        return np.zeros(0, np.int64)
+    n = model.node_count
+    return np.unique(np.concatenate([pairs[:, 0] * n + pairs[:, 1], pairs[:, 1] * n + pairs[:, 0]]))
 
 
 class GeneralizedAlpha:
@@ -294,28 +251,17 @@ class GeneralizedAlpha:
         self._rate_fresh = True
         self._contact_info = (0, 0.0, -1, 0.0)
         self._coupled_blocks = []
-        self._face_cands = []
-        self._edge_face_cands = []
-        self._edge_edge_cands = []
-        # node pairs that share a shell element (keys a * n + b), for the self-contact filter
-        if (model.face_sets or model.edge_face_sets) and model.triangles.size:
-            t = model.triangles
-            a = np.concatenate([t[:, 0], t[:, 1], t[:, 2], t[:, 1], t[:, 2], t[:, 0]])
-            b = np.concatenate([t[:, 1], t[:, 2], t[:, 0], t[:, 0], t[:, 1], t[:, 2]])
-            self._adjacent_keys = np.unique(a * model.node_count + b)
-        else:
-            self._adjacent_keys = np.zeros(0, np.int64)
+        # the contact sets carry this run's history (stick springs, anchors, candidates): each
+        # integrator works on its own copies, so two runs of one model never share it
+        model.contact_sets = [copy.deepcopy(cs) for cs in model.contact_sets]
+        self._adjacent_keys = _adjacent_keys(model)
         self._impact_w2 = 0.0
         self._fc_trial = None  # translational contact forces of the last converged trial
         self._fc_prev = np.zeros((model.node_count, 3))
         mt = model.mass[:, :1]
         self._inv_mass = np.divide(1.0, mt, out=np.zeros_like(mt), where=mt > 0)
-        self._u_el = np.zeros((model.cp_node.size, 3))  # stick-model history per contact point
-        self._u_el_trial = self._u_el.copy()
-        # stick anchors of node-box pairs (box frame) and of each node-face set's nodes (world)
-        self._box_anchors = _StickAnchors(model.bp_node.size)
-        self._face_anchors = [_StickAnchors(fs[0].size) for fs in model.face_sets]
         self._h_now = self.opt.dt_initial
+        self._reach = 0.0
         # node masses as the impact step limit sees them: an infinite mass never limits
         self._node_mass = np.ascontiguousarray(model.mass[:, 0]).copy()
         if self.opt.impact_limit == "off":
@@ -329,14 +275,11 @@ class GeneralizedAlpha:
         self._ext_dofs = np.empty(model.ext_count, dtype=np.int64)
         self._ext_dofs[model.free_index[mask]] = np.flatnonzero(mask)
         self._mfree = asm.free_vector(model, model.mass)
-        tri = model.tri_xloc
-        area = 0.5 * np.abs(
-            (tri[:, 1, 0] - tri[:, 0, 0]) * (tri[:, 2, 1] - tri[:, 0, 1])
-            - (tri[:, 2, 0] - tri[:, 0, 0]) * (tri[:, 1, 1] - tri[:, 0, 1])
-        )
         # length that converts rotation corrections to displacements in the Newton test
-        if area.size:
-            self.elem_size = float(np.sqrt(np.mean(area)))
+        sizes = [g.characteristic_length() for g in model.element_groups]
+        sizes = [x for x in sizes if x is not None]
+        if sizes:
+            self.elem_size = sizes[0]
         elif model.rigid_half_inner.size:
             self.elem_size = float(np.max(model.rigid_half_inner + model.rigid_radius[:, None]))
         else:
@@ -376,7 +319,8 @@ class GeneralizedAlpha:
         a1[fixed] = 0.0
         qdd[fixed] = 0.0
         v1[fixed] = 0.0
-        v1[self.model.prescribed_nodes] = self.model.prescribed_velocity
+        if self.model.prescribed_nodes.size:
+            v1[self.model.prescribed_nodes] = self.model.prescribed_motion(s0.time + h)[0]
         return a1, qdd, v1
 
     def _nodal_residual(self, s1, qdd, v1, fint, fc, t1):
@@ -389,101 +333,37 @@ class GeneralizedAlpha:
             inertia += asm.rigid_inertial_moments(m, s1.rotations, qdd[:, 3:], v1[:, 3:])
         return inertia + fint - asm.external_forces(m, t1, s1.rotations) - fc
 
-    def _contact(self, s: State, t: float):
-        """Contact forces (n, 6) on the nodes, per-point derivative blocks (P, 6, 6) of plane
-        contacts; the (node, box) pairs' derivative blocks are kept for the tangent."""
+    def _contact_context(self, t: float) -> ContactContext:
         m = self.model
-        fc = np.zeros((m.node_count, 6))
-        npts = m.cp_node.size
-        dq = np.zeros((npts, 6, 6))
-        dv = np.zeros((npts, 6, 6))
-        info = (0, 0.0, -1, 0.0)
-        factors = np.array([sch(t) for sch in m.contact_schedules])
-        w2 = np.zeros(1)  # largest (contact stiffness / node mass) of impacting contacts
-        if npts:
-            info = plane_contact_forces(
-                m.cp_node, m.cp_offset, m.cp_radius, m.cp_plane, m.cp_law,
-                factors[m.cp_schedule], m.plane_point, m.plane_normal, m.plane_velocity,
-                m.contact_laws, s.positions, s.rotations, s.velocities, fc, dq, dv,
-                self._node_mass, self.opt.impact_speed, w2, self._u_el, self._u_el_trial,
-                self._h_now, self._s0.positions, self._s0.rotations,
-            )  # fmt: skip
-        self._coupled_blocks = []
-        nq = m.bp_node.size
-        if nq:
-            bk = np.zeros((nq, 9, 9))
-            bc = np.zeros((nq, 9, 9))
-            dofs = np.zeros((nq, 9), dtype=np.int64)
-            binfo = box_contact_forces(
-                m.bp_node, m.bp_box, m.bp_radius, m.bp_law, factors[m.bp_schedule],
-                _box_half_at(m, t), m.box_radius_by_node, m.contact_laws, s.positions,
-                s.rotations, s.velocities, fc, bk, bc, dofs, self._node_mass,
-                self.opt.impact_speed, w2, *self._box_anchors.kernel_args(),
-                self._s0.positions, self._s0.rotations,
-            )  # fmt: skip
-            self._coupled_blocks.append((bk, bc, dofs))
-            deeper = binfo[1] > info[1]
-            info = (info[0] + binfo[0], max(info[1], binfo[1]),
-                    binfo[2] if deeper else info[2], max(info[3], binfo[3]))  # fmt: skip
-        for edges, plane, radius, samples, law, sched in m.edge_sets:
-            ek, ec, dofs = _pair_blocks(edges.shape[0], 6)
-            nc, depth, ratio = edge_plane_forces(
-                edges, m.plane_point[plane], m.plane_normal[plane], m.plane_velocity[plane],
-                radius, samples, m.contact_laws[law], factors[sched], s.positions,
-                s.velocities, fc, ek, ec, dofs, self._node_mass, self.opt.impact_speed, w2,
-            )  # fmt: skip
-            self._coupled_blocks.append((ek, ec, dofs))
-            info = _merged(info, nc, depth, ratio)
-        if m.edge_box_sets:
-            half = _box_half_at(m, t)
-        for edges, box, radius, samples, law, sched in m.edge_box_sets:
-            ek, ec, dofs = _pair_blocks(edges.shape[0], 12)
-            nc, depth, ratio = edge_box_forces(
-                edges, box, radius, samples, m.contact_laws[law], factors[sched], half,
-                m.box_radius_by_node, s.positions, s.rotations, s.velocities, fc, ek, ec, dofs,
-                self._node_mass, self.opt.impact_speed, w2,
-            )  # fmt: skip
-            self._coupled_blocks.append((ek, ec, dofs))
-            info = _merged(info, nc, depth, ratio)
-        for (nodes, tris, thick, law, sched), (pairs, sides), anchors in zip(
-            m.face_sets, self._face_cands, self._face_anchors, strict=True
-        ):
-            fk, fcv, dofs = _pair_blocks(pairs.shape[0], 12)
-            nc, depth, ratio = face_contact_forces(
-                pairs, sides, nodes, tris, thick, m.contact_laws[law], factors[sched],
-                s.positions, s.velocities, fc, fk, fcv, dofs, self._node_mass,
-                self.opt.impact_speed, w2, *anchors.kernel_args(), self._s0.positions,
-            )  # fmt: skip
-            self._coupled_blocks.append((fk, fcv, dofs))
-            info = _merged(info, nc, depth, ratio)
-        for (edges_a, edges_b, thick, law, sched), (pairs, sides) in zip(
-            m.edge_edge_sets, self._edge_edge_cands, strict=True
-        ):
-            ek, ec, dofs = _pair_blocks(pairs.shape[0], 12)
-            nc, depth, ratio = edge_edge_forces(
-                pairs, sides, edges_a, edges_b, thick, m.contact_laws[law], factors[sched],
-                s.positions, s.velocities, fc, ek, ec, dofs, self._node_mass,
-                self.opt.impact_speed, w2,
-            )  # fmt: skip
-            self._coupled_blocks.append((ek, ec, dofs))
-            info = _merged(info, nc, depth, ratio)
-        for (edges, tris, thick, samples, law, sched), (pairs, sides) in zip(
-            m.edge_face_sets, self._edge_face_cands, strict=True
-        ):
-            ek, ec, dofs = _pair_blocks(pairs.shape[0], 15)
-            nc, depth, ratio = edge_face_forces(
-                pairs, sides, edges, samples, tris, thick, m.contact_laws[law], factors[sched],
-                s.positions, s.velocities, fc, ek, ec, dofs, self._node_mass,
-                self.opt.impact_speed, w2,
-            )  # fmt: skip
-            self._coupled_blocks.append((ek, ec, dofs))
-            info = _merged(info, nc, depth, ratio)
-        self._impact_w2 = float(w2[0])
-        return fc, dq, dv, info
+        return ContactContext(
+            model=m,
+            laws=m.contact_laws,
+            factors=np.array([sch(t) for sch in m.contact_schedules]),
+            node_mass=self._node_mass,
+            impact_speed=self.opt.impact_speed,
+            start=self._s0,
+            step=self._h_now,
+            box_half=m.box_half_at(t),
+            reach=self._reach,
+            adjacent_keys=self._adjacent_keys,
+        )
+
+    def _contact(self, s: State, t: float):
+        """Contact forces (n, 6) on the nodes of every contact set at state ``s``, time ``t``,
+        the blocks of contacts acting on single nodes (for :meth:`_add_contact_tangent`) and
+        the contact info (count, deepest penetration, its node, worst ratio); the blocks of
+        contacts coupling several nodes are kept for :meth:`_box_contact_matrix`."""
+        ctx = self._contact_context(t)
+        out = ContactOutput(np.zeros((self.model.node_count, 6)))
+        for cs in self.model.contact_sets:
+            cs.evaluate(ctx, s, out)
+        self._coupled_blocks = out.coupled_blocks
+        self._impact_w2 = float(ctx.w2[0])
+        return out.forces, out.node_blocks, (out.count, out.depth, out.worst_node, out.ratio)
 
     def _box_contact_matrix(self, cv: float):
         """-(dF/dq + cv dF/dv) of the contact pairs that couple several nodes (node-box,
-        node-face), (ext x ext) sparse; None if none is in contact."""
+        node-face, line contacts), (ext x ext) sparse; None if none is in contact."""
         mats = []
         n = self.model.ext_count
         for bk, bc, dofs in self._coupled_blocks:
@@ -499,60 +379,26 @@ class GeneralizedAlpha:
             mats.append(sp.csr_matrix((blocks[ok], (rows[ok], cols[ok])), shape=(n, n)))
         return sum(mats[1:], mats[0]) if mats else None
 
-    def _face_candidates(self, s0: State, h: float) -> None:
-        """Broad phase once per step, at its start: candidate (node, face) pairs within the
-        contact thickness plus twice the distance any node can travel in the step, and the side
-        of its face each node starts on."""
-        m = self.model
-        self._face_cands = []
-        self._edge_face_cands = []
-        self._edge_edge_cands = []
-        if not (m.face_sets or m.edge_face_sets or m.edge_edge_sets):
+    def _prepare_contacts(self, s0: State, h: float) -> None:
+        """Broad phase once per step, at its start: each contact set finds its candidates
+        within its contact distance plus twice the distance any node can travel in the
+        step."""
+        if not self.model.contact_sets:
             return
         vmax = float(np.sqrt((s0.velocities[:, :3] ** 2).sum(axis=1)).max())
-        reach = 2.0 * h * (vmax + 9.81 * h) + 1e-9
-        for nodes, tris, thick, _, _ in m.face_sets:
-            points = s0.positions[nodes]
-            self._face_cands.append(
-                self._point_face_candidates(points, nodes[:, None], tris, thick, reach, s0)
-            )
-        for edges, tris, thick, samples, _, _ in m.edge_face_sets:
-            points, owners = edge_stations(edges, samples, s0.positions)
-            self._edge_face_cands.append(
-                self._point_face_candidates(points, owners, tris, thick, reach, s0)
-            )
-        for edges_a, edges_b, thick, _, _ in m.edge_edge_sets:
-            # pairs within the thickness plus the reach; each keeps the direction it starts in
-            pairs = segment_segment_candidates(edges_a, thick, edges_b, s0.positions, reach)
-            sides = edge_edge_sides(pairs, edges_a, edges_b, s0.positions)
-            self._edge_edge_cands.append((pairs, sides))
+        self._reach = 2.0 * h * (vmax + 9.81 * h) + 1e-9
+        ctx = self._contact_context(s0.time + h)
+        for cs in self.model.contact_sets:
+            cs.prepare(ctx, s0, h)
+            cs.begin_step()
 
-    def _point_face_candidates(self, points, owners, tris, thick, reach, s0: State):
-        """Candidate (point, face) pairs of ``points`` (N, 3) owned by nodes ``owners`` (N, k)
-        and the side of its face each point starts on."""
-        pairs = point_triangle_candidates(
-            points, thick, tris, s0.positions, thick + reach, point_node=owners
-        )
-        if pairs.size and self._adjacent_keys.size:
-            # a point never touches a face next to one of its nodes in its own mesh: it lies on
-            # the extension of such a face (a shared border of two layers, a fold), at zero
-            # distance, which would read as a full-depth penetration
-            corner = tris[pairs[:, 1]]
-            own = owners[pairs[:, 0]]
-            keys = own[:, :, None] * self.model.node_count + corner[:, None, :]
-            # membership by binary search in the sorted keys: np.isin sorts or hashes them
-            # again on every call (measured 6.6 ms a step on the paper's conveyor)
-            adj = self._adjacent_keys
-            at = np.minimum(np.searchsorted(adj, keys), adj.size - 1)
-            near = (adj[at] == keys).any(axis=(1, 2))
-            pairs = pairs[~near]
-        return pairs, face_sides(pairs, points, tris, s0.positions)
-
-    def _add_contact_tangent(self, data, cdq, cdv, cv):
-        """Residual r = ... - f_contact: add -(dF/dq + cv dF/dv) into each node's block."""
-        m = self.model
-        if m.cp_node.size:
-            np.add.at(data, m.node_block_slots[m.cp_node].ravel(), -(cdq + cv * cdv).ravel())
+    def _add_contact_tangent(self, data, node_blocks, cv):
+        """Residual r = ... - f_contact: add -(dF/dq + cv dF/dv) of the contacts acting on
+        single nodes into each node's block."""
+        slots = self.model.node_block_slots
+        for nodes, dq, dv in node_blocks:
+            if nodes.size:
+                np.add.at(data, slots[nodes].ravel(), -(dq + cv * dv).ravel())
 
     def _factor(self, mat) -> bool:
         try:
@@ -588,12 +434,16 @@ class GeneralizedAlpha:
         return x
 
     def _drive_prescribed(self, s: State) -> None:
-        """Place the prescribed bodies at time ``s.time``: x = x0 + v t, R = exp(w t)."""
+        """Place the prescribed bodies at time ``s.time``: x = x0 + v S(t), R = exp(w S(t))
+        with S the integral of their schedules (see PrescribedMotion)."""
         m = self.model
-        for node, vw in zip(m.prescribed_nodes, m.prescribed_velocity, strict=True):
-            s.positions[node] = m.positions0[node] + vw[:3] * s.time
-            s.rotations[node] = rotation_exp(vw[3:] * s.time)
-            s.velocities[node] = vw
+        if not m.prescribed_nodes.size:
+            return
+        vel, area = m.prescribed_motion(s.time)
+        for k, node in enumerate(m.prescribed_nodes):
+            s.positions[node] = m.positions0[node] + m.prescribed_velocity[k, :3] * area[k]
+            s.rotations[node] = rotation_exp(m.prescribed_velocity[k, 3:] * area[k])
+            s.velocities[node] = vel[k]
 
     def _increment_map(self, theta: np.ndarray) -> sp.csr_matrix:
         """Block-diagonal d(increment)/d(spin correction) over the free DOFs: identity for
@@ -624,8 +474,8 @@ class GeneralizedAlpha:
         ca = (1.0 - am) / ((1.0 - af) * b * h * h)
         cv = self.gamma / (b * h)
         t1 = s0.time + h
-        for group, xref_full, schedule in m.solid_growth:
-            m.solid_groups[group]["xref"] = np.ascontiguousarray(xref_full * schedule(t1))
+        for group in m.element_groups:
+            group.at_time(t1)
         # predictor: translations with qdd_{n+1} = qdd_n; rotations at constant angular velocity,
         # because the nodal rotary inertia of a thin shell is tiny (rho t^3/12) and its
         # accelerations carry no useful trend (they are set by small moment imbalances)
@@ -642,10 +492,9 @@ class GeneralizedAlpha:
         if m.slave_nodes.size:
             asm.project_slaves(m, s1.positions, s1.rotations)
             theta = relative_rotation_vectors(s1.rotations, s0.rotations)
-        self._face_candidates(s0, h)
         self._h_now = h
         self._s0 = s0
-        self._u_el_trial = np.zeros_like(self._u_el)  # points out of contact lose their spring
+        self._prepare_contacts(s0, h)
         tol = self.opt.newton_tol * self.opt.tol_displacement
         prev = None
         tangent_iter = None  # iteration (of this step) whose state the tangent was built at
@@ -659,7 +508,7 @@ class GeneralizedAlpha:
                 s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h
             )
             s1.velocities = v1
-            fc, cdq, cdv, self._contact_info = self._contact(s1, t1)
+            fc, node_blocks, self._contact_info = self._contact(s1, t1)
             t_red = asm.reduction(m, s1.rotations)  # None without FDRs
             t0 = _time.perf_counter()
             if refresh or self._tangent is None or not self.opt.reuse_factorization:
@@ -686,7 +535,7 @@ class GeneralizedAlpha:
                 if self.opt.tangent == "consistent":
                     tmap = self._increment_map(theta)
                     asm.add_rigid_inertia_tangent(m, data, s1.rotations, v1[:, 3:], ca, cv)
-                    self._add_contact_tangent(data, cdq, cdv, cv)
+                    self._add_contact_tangent(data, node_blocks, cv)
                     mat = (
                         asm.csr_from_data(m, data)
                         + (
@@ -704,7 +553,7 @@ class GeneralizedAlpha:
                     data += cv * dc
                     data[m.diag_slots] += (ca + cv * m.mass_damping) * self._mfree
                     asm.add_rigid_inertia_tangent(m, data, s1.rotations, v1[:, 3:], ca, cv)
-                    self._add_contact_tangent(data, cdq, cdv, cv)
+                    self._add_contact_tangent(data, node_blocks, cv)
                     mat = asm.csr_from_data(m, data)
                     box_mat = self._box_contact_matrix(cv)
                     if box_mat is not None:
@@ -824,21 +673,19 @@ class GeneralizedAlpha:
     def history(self) -> dict[str, np.ndarray]:
         """What the next step depends on besides the :class:`State`: the algorithmic
         accelerations, the step controller (step, Newton cap, contraction rate), the stick-model
-        history (plane springs, box and face anchors), the last contact forces of the error
-        estimate, and the statistics so far. With :meth:`restore_history` a run continues
-        exactly as if uninterrupted (bit for bit unless ``reuse_factorization`` or
-        ``krylov_reuse`` carry a factorisation across steps, which is not saved)."""
+        history of every contact set (as ``"contact.<set key>.<name>"``), the last contact
+        forces of the error estimate, and the statistics so far. With :meth:`restore_history`
+        a run continues exactly as if uninterrupted (bit for bit unless
+        ``reuse_factorization`` or ``krylov_reuse`` carry a factorisation across steps, which
+        is not saved)."""
         out = {
             "alg": self._alg,
-            "u_el": self._u_el,
             "fc_prev": self._fc_prev,
-            "box_anchor": self._box_anchors.anchor,
-            "box_has": self._box_anchors.has,
             "scalars": np.array([float(getattr(self, k)) for k in self._HISTORY_SCALARS]),
         }
-        for i, a in enumerate(self._face_anchors):
-            out[f"face_anchor_{i}"] = a.anchor
-            out[f"face_has_{i}"] = a.has
+        for cs in self.model.contact_sets:
+            for name, arr in cs.history().items():
+                out[f"{CONTACT_HISTORY}.{cs.key}.{name}"] = arr
         counts = {k: v for k, v in asdict(self.stats).items() if k != "wall_s"}
         out["stat_counts"] = np.array(list(counts.values()), dtype=np.int64)
         out["stat_wall"] = np.array(list(self.stats.wall_s.values()))
@@ -859,15 +706,16 @@ class GeneralizedAlpha:
             return v.astype(np.asarray(like).dtype, copy=True)
 
         self._alg = take("alg", np.zeros((self.model.node_count, 6)))
-        self._u_el = take("u_el", self._u_el)
         self._fc_prev = take("fc_prev", self._fc_prev)
-        self._box_anchors.anchor = take("box_anchor", self._box_anchors.anchor)
-        self._box_anchors.has = take("box_has", self._box_anchors.has)
-        for i, a in enumerate(self._face_anchors):
-            a.anchor = take(f"face_anchor_{i}", a.anchor)
-            a.has = take(f"face_has_{i}", a.has)
+        for cs in self.model.contact_sets:
+            prefix = f"{CONTACT_HISTORY}.{cs.key}."
+            own = {k[len(prefix) :]: v for k, v in history.items() if k.startswith(prefix)}
+            try:
+                cs.restore_history(own)
+            except ValueError as exc:
+                raise ValueError(f"integrator history of contact set {cs.key!r}: {exc}") from None
         if "scalars" in history and len(history["scalars"]) == len(self._HISTORY_SCALARS) - 1:
-            # a checkpoint from before _rate_fresh (2026-11-24): its rate counts as measured
+            # a history from before _rate_fresh was saved: its rate counts as measured
             history = {**history, "scalars": np.append(history["scalars"], 1.0)}
         scalars = take("scalars", np.zeros(len(self._HISTORY_SCALARS)))
         for k, v in zip(self._HISTORY_SCALARS, scalars, strict=True):
@@ -921,14 +769,14 @@ class GeneralizedAlpha:
                     self.h = h_lim
                     continue
                 self.h = min(self.h, max(h_lim, opt.dt_min))
-            n_contact, depth, point, ratio = self._contact_info
+            n_contact, depth, node, ratio = self._contact_info
             if ratio > 1.0:
                 # a contact went deeper than its law's max_penetration: retry smaller
                 self._reject("penetration")
                 if h <= opt.dt_min * 1.0001:
+                    where = f"a contact at node {node}" if node >= 0 else "a contact"
                     raise ConvergenceError(
-                        f"contact point {point} (node {int(self.model.cp_node[point])}) "
-                        f"penetrates {depth:.3g} m, beyond its max_penetration, at "
+                        f"{where} penetrates {depth:.3g} m, beyond its max_penetration, at "
                         f"t = {s1.time:.6g} s (step {self.stats.steps + 1}) even at dt_min"
                     )
                 self.h = max(0.5 * h, opt.dt_min)
@@ -954,10 +802,8 @@ class GeneralizedAlpha:
                 self.h = min(opt.dt_initial, 2.0 * h)
             if self._fc_trial is not None:
                 self._fc_prev = self._fc_trial
-            self._u_el = self._u_el_trial.copy()  # commit the stick-model history
-            self._box_anchors.commit()
-            for anchors in self._face_anchors:
-                anchors.commit()
+            for cs in self.model.contact_sets:
+                cs.commit()  # the stick-model history of the accepted step
             self._alg = a1
             self.stats.steps += 1
             return s1

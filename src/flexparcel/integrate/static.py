@@ -15,7 +15,7 @@ from flexparcel.elements.rotations import apply_spins, rotation_vectors
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.errors import ConvergenceError
 from flexparcel.integrate.linear import SingularMatrixError, make_linear_solver
-from flexparcel.model.builder import Model, State
+from flexparcel.model.model import Model, State
 
 __all__ = ["StaticResult", "solve_static", "apply_increment"]
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from flexparcel.io.atomic import write_atomic
-from flexparcel.model.builder import Model, State
+from flexparcel.model.model import Model, State
 
 __all__ = [
     "CHECKPOINT_FORMAT",
@@ -35,13 +35,13 @@ __all__ = [
 ]
 
 CHECKPOINT_FORMAT = "flexparcel-run-checkpoint"
-CHECKPOINT_VERSION = 1
+CHECKPOINT_VERSION = 2  # 2: contact history keyed by contact set
 
-# the arrays that define a model's dynamics (geometry, mass, elements, supports, contacts)
+# the arrays that define a model's dynamics (geometry, mass, supports, bodies); the element
+# groups and contact sets add their own (fingerprint_arrays)
 _MODEL_FIELDS = (
-    "positions0", "mass", "triangles", "tri_xloc", "fixed", "gravity", "mass_damping",
-    "rigid_nodes", "rigid_inertia", "plane_point", "plane_normal", "plane_velocity",
-    "contact_laws", "cp_node", "cp_law", "bp_node", "bp_law", "prescribed_nodes",
+    "positions0", "mass", "fixed", "gravity", "mass_damping", "rigid_nodes", "rigid_inertia",
+    "plane_point", "plane_normal", "plane_velocity", "contact_laws", "prescribed_nodes",
     "prescribed_velocity",
 )  # fmt: skip
 
@@ -61,7 +61,10 @@ def _digest(arrays) -> str:
 
 def model_fingerprint(model: Model) -> str:
     """SHA-256 over the arrays that define the model's dynamics (hex)."""
-    return _digest(getattr(model, k) for k in _MODEL_FIELDS if hasattr(model, k))
+    arrays = [getattr(model, k) for k in _MODEL_FIELDS]
+    for part in (*model.element_groups, *model.contact_sets):
+        arrays.extend(part.fingerprint_arrays())
+    return _digest(arrays)
 
 
 def state_fingerprint(state: State) -> str:

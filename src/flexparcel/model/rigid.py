@@ -8,9 +8,11 @@ from the inner box, so contact against it is contact against the inner box infla
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from flexparcel.model.schedule import Schedule
 
 __all__ = ["RoundedBox", "PrescribedMotion"]
 
@@ -106,11 +108,17 @@ class RoundedBox:
 
 @dataclass(frozen=True)
 class PrescribedMotion:
-    """Constant translational velocity [m/s] and angular velocity [rad/s] (world frame), e.g. a
-    belt roller turning at a fixed rate. The body follows x(t) = x0 + v t, R(t) = exp(w t) R0."""
+    """Translational velocity [m/s] and angular velocity [rad/s] (world frame) times a time
+    schedule, e.g. a belt roller turning at a fixed rate (the default schedule is 1 at all
+    times) or a tilting tray (an angular velocity ramped on and off).
+
+    With ``S(t) = integral of schedule from 0 to t`` [s] the body follows
+    ``x(t) = x0 + v S(t)`` and ``R(t) = exp(w S(t)) R0``: exact for a fixed rotation axis.
+    """
 
     velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     angular_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    schedule: Schedule = field(default_factory=Schedule.constant)
 
     def __post_init__(self) -> None:
         v = np.asarray(self.velocity, float)
@@ -120,3 +128,5 @@ class PrescribedMotion:
                 "PrescribedMotion: velocity and angular_velocity must be 3 finite "
                 "numbers [m/s], [rad/s]"
             )
+        if not isinstance(self.schedule, Schedule):
+            raise TypeError("PrescribedMotion.schedule must be a Schedule")

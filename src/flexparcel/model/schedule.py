@@ -52,6 +52,17 @@ class Schedule:
     def __call__(self, t: float) -> float:
         return float(np.interp(t, self.times, self.factors))
 
+    def integral(self, t: float) -> float:
+        """Integral of the factor from 0 to ``t`` [s] (exact for the piecewise-linear factor,
+        constant beyond the ends, negative for t < 0)."""
+        knots = np.asarray(self.times, dtype=float)
+        lo, hi = (0.0, float(t)) if t >= 0.0 else (float(t), 0.0)
+        inner = knots[(knots > lo) & (knots < hi)]
+        x = np.concatenate([[lo], inner, [hi]])
+        f = np.interp(x, knots, np.asarray(self.factors, dtype=float))
+        area = float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(x)))
+        return area if t >= 0.0 else -area
+
     def breakpoints(self) -> np.ndarray:
         """Times [s] where the factor changes slope (the time loop steps onto them)."""
         return np.asarray(self.times, dtype=float)

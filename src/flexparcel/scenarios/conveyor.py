@@ -39,8 +39,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from flexparcel.builder import ModelBuilder
 from flexparcel.contact.law import ContactLaw
-from flexparcel.model.builder import ModelBuilder
 from flexparcel.model.checks import finite_number
 from flexparcel.model.rigid import RoundedBox
 
@@ -293,7 +293,7 @@ class ConveyorParts:
 TIP_SEGMENT_LENGTH = 25e-3
 """Length [m] of the segments a deflector's tip edge is cut into (the face mesh's rows): the
 paper's conveyor mesh size. Each segment's stations together carry the contact law once
-(:meth:`~flexparcel.model.builder.ModelBuilder.add_edge_face_contact`), so the tip holds a
+(:meth:`~flexparcel.builder.ModelBuilder.add_edge_face_contact`), so the tip holds a
 face as firmly per length as packaging nodes 25 mm apart hold on the face."""
 
 TIP_STATION_SPACING = 5e-3

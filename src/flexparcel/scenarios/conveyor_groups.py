@@ -42,13 +42,12 @@ history at a frame, and a resumed run continues bit for bit.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import multiprocessing as mp
 import time as _time
 import traceback
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numba as nb
@@ -56,21 +55,17 @@ import numpy as np
 
 from flexparcel.contact.broadphase import point_triangle_candidates
 from flexparcel.contact.geometry import point_triangle
-from flexparcel.integrate.dynamic import GeneralizedAlpha, IntegratorOptions, Stats
-from flexparcel.io.checkpoint import (
-    CHECKPOINT_FORMAT,
-    CHECKPOINT_VERSION,
-    RunCheckpoint,
-    check_same_run,
-    load_checkpoint,
-    model_fingerprint,
-    save_checkpoint,
-    state_fingerprint,
+from flexparcel.integrate.dynamic import (
+    CONTACT_HISTORY,
+    GeneralizedAlpha,
+    IntegratorOptions,
+    Stats,
 )
-from flexparcel.model.builder import State
-from flexparcel.simulate import FrameRecorder, SimulationResult, output_times
+from flexparcel.model.mesh import surface_triangles
+from flexparcel.model.model import State
+from flexparcel.simulate import SimulationResult, Stepper, simulate
 
-__all__ = ["GroupSettings", "integrate_by_groups", "box_gap", "mesh_gap"]
+__all__ = ["GroupSettings", "GroupStepper", "integrate_by_groups", "box_gap", "mesh_gap"]
 
 
 @dataclass(frozen=True)
@@ -144,14 +139,8 @@ def mesh_gap(pos: np.ndarray, a: tuple, b: tuple, limit: float) -> float:
 # ------------------------------------------------------------------ one group's integration
 
 
-def _set_key(nodes: np.ndarray, tris: np.ndarray, thickness: float) -> str:
-    """Identity of a node-face contact set in full-scene numbering."""
-    h = hashlib.sha256()
-    for a in (nodes, tris, np.array(float(thickness))):
-        a = np.ascontiguousarray(a)
-        h.update(str((a.dtype.str, a.shape)).encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
+_ROWS = "rows"
+"""Prefix of the exported row identities of each contact set's history."""
 
 
 class _Group:
@@ -160,15 +149,9 @@ class _Group:
     a model of other members can take them over (``exports`` of the constructor)."""
 
     def __init__(self, setup: dict, names: tuple[str, ...], exports: list[dict] | None):
-        from flexparcel.scenarios.conveyor_scene import SceneLayout, build_conveyor_model
-
         layout = setup["layout"]
-        sub = SceneLayout(
-            layout.conveyor,
-            tuple(p for p in layout.placements if p.name in names),
-            layout.gap_above_belt,
-        )
-        cm = build_conveyor_model(setup["snapshots"], sub, **setup["build"])
+        sub = replace(layout, placements=tuple(p for p in layout.placements if p.name in names))
+        cm = setup["build_model"](setup["snapshots"], sub, **setup["build"])
         self.names = names
         self.model = cm.model
         # sub-model node -> full-scene node: the conveyor's nodes come first in both
@@ -179,20 +162,15 @@ class _Group:
         for name, c in cm.consignments.items():
             self.full[c.node_ids] = full_ids[name]
         self.integ = GeneralizedAlpha(cm.model, setup["options"])
+        # identity of each contact set's history rows in full-scene numbering, so that a
+        # model of other members takes over the rows it shares (they do not change)
+        self._rows = {}
+        for cs in self.integ.model.contact_sets:
+            rows = cs.history_rows(self.full)
+            if rows is not None:
+                self._rows[cs.key] = rows
+        self._key_arrays = {f"{_ROWS}.{k}": v for k, v in self._rows.items()}
         m = cm.model
-        self._cp_keys = [
-            (int(self.full[n]), int(pl), *map(float, off))
-            for n, pl, off in zip(m.cp_node, m.cp_plane, m.cp_offset, strict=True)
-        ]
-        f = self.full
-        self._bp_keys = [(int(f[n]), int(f[b])) for n, b in zip(m.bp_node, m.bp_box, strict=True)]
-        self._face_keys = [_set_key(f[fs[0]], f[fs[1]], fs[2]) for fs in m.face_sets]
-        # the same keys as arrays, for every export (they do not change)
-        self._key_arrays = {
-            "cp_key": np.array(self._cp_keys, dtype=float).reshape(-1, 5),
-            "bp_key": np.array(self._bp_keys, dtype=np.int64).reshape(-1, 2),
-            "face_key": np.array(self._face_keys, dtype="U64"),
-        }
         self.wall = 0.0  # wall time of the last advance [s]
         sched = list(m.schedules) + [m.gravity_schedule]
         self._breaks = sorted({float(b) for s in sched for b in s.breakpoints()})
@@ -237,26 +215,7 @@ class _Group:
         hist["alg"], hist["fc_prev"] = node["alg"], node["fc_prev"]
         pos, rot, vel, acc = (node[k] for k in ("positions", "rotations", "velocities",
                                                  "accelerations"))  # fmt: skip
-        cp = {}
-        bp = {}
-        faces = {}
-        for e in exports:
-            cp.update(zip(map(tuple, e["cp_key"].tolist()), e["u_el"], strict=True))
-            held = zip(e["box_anchor"], e["box_has"], strict=True)
-            bp.update(zip(map(tuple, e["bp_key"].tolist()), held, strict=True))
-            faces.update({
-                str(key): (e[f"face_anchor_{i}"], e[f"face_has_{i}"])
-                for i, key in enumerate(e["face_key"])
-            })  # fmt: skip
-        for k, key in enumerate(self._cp_keys):
-            if key in cp:
-                hist["u_el"][k] = cp[key]
-        for k, key in enumerate(self._bp_keys):
-            if key in bp:
-                hist["box_anchor"][k], hist["box_has"][k] = bp[key]
-        for i, key in enumerate(self._face_keys):
-            if key in faces:  # a set between two former groups has no history yet
-                hist[f"face_anchor_{i}"], hist[f"face_has_{i}"] = faces[key]
+        self._take_contact_history(hist, exports)
         if len(exports) == 1 and tuple(map(str, exports[0]["members"])) == self.names:
             # the same group elsewhere (moved, resumed): it goes on exactly
             hist["scalars"] = exports[0]["scalars"]
@@ -266,6 +225,28 @@ class _Group:
             hist["scalars"] = self._merged_scalars(exports)
         self.integ.restore_history(hist)
         self.state = State(float(exports[0]["time"]), pos, rot, vel, acc)
+
+    def _take_contact_history(self, hist: dict, exports: list[dict]) -> None:
+        """Fill the contact sets' history rows of ``hist`` that the exports hold, matched
+        by row identity; a row no export has (a set between two former groups) stays empty."""
+        held: dict = {}
+        for e in exports:
+            for key in e:
+                if not key.startswith(f"{_ROWS}."):
+                    continue
+                set_key = key[len(_ROWS) + 1 :]
+                prefix = f"{CONTACT_HISTORY}.{set_key}."
+                arrays = {k[len(prefix) :]: e[k] for k in e if k.startswith(prefix)}
+                for name, arr in arrays.items():
+                    held.update(((row, name), v) for row, v in zip(e[key], arr, strict=True))
+        for set_key, rows in self._rows.items():
+            prefix = f"{CONTACT_HISTORY}.{set_key}."
+            for key in [k for k in hist if k.startswith(prefix)]:
+                name = key[len(prefix) :]
+                for i, row in enumerate(rows):
+                    v = held.get((row, name))
+                    if v is not None:
+                        hist[key][i] = v
 
     def export(self) -> dict:
         """State and integrator history at the current time, in full-scene numbering."""
@@ -481,7 +462,8 @@ def integrate_by_groups(
 ) -> SimulationResult:
     """Integrate the scene ``cm`` (a :class:`~flexparcel.scenarios.conveyor_scene.ConveyorModel`
     built from ``snapshots`` with ``build_kwargs``) from its ``state0`` to ``t_end`` [s]
-    group by group (module docstring), recording every ``dt_out`` [s].
+    group by group (module docstring), recording every ``dt_out`` [s]: :func:`simulate`
+    with a :class:`GroupStepper`.
 
     Returns a :class:`~flexparcel.simulate.SimulationResult` of the full scene's model (frames
     in its node numbering, energies of the full model). ``stats`` sums the groups'
@@ -489,63 +471,179 @@ def integrate_by_groups(
     members), rewinds and the wall time of each worker. ``checkpoint``: as for
     :func:`flexparcel.simulate` (same file format; a one-model checkpoint is refused).
     """
-    settings = settings or GroupSettings()
-    model = cm.model
-    t0 = cm.state0.time
-    out_times = output_times(t0, t_end, dt_out)
-    names = [p.name for p in cm.layout.placements]
-    cons = cm.consignments
-    can_touch = {frozenset(p) for p in cm.consignment_pairs}
-    radius = {k: c.contact_radius for k, c in cons.items()}
-    header = {
-        "format": CHECKPOINT_FORMAT,
-        "t0": float(t0),
-        "t_end": float(t_end),
-        "dt_out": float(dt_out),
-        "node_count": model.node_count,
-        "model": model_fingerprint(model),
-        "initial_state": state_fingerprint(cm.state0),
-        "options": asdict(options),
-        "mode": "groups",
-    }
-    header["options"] = json.loads(json.dumps(header["options"]))
-    resumed = None
-    if checkpoint is not None and Path(checkpoint).exists():
-        resumed = load_checkpoint(checkpoint)
-        check_same_run(checkpoint, resumed.header, header)
-    elif checkpoint_only:
-        raise FileNotFoundError(f"integrate_by_groups: no checkpoint {checkpoint} to read")
+    stepper = GroupStepper(cm, snapshots, options, build_kwargs, settings, dt_out)
+    return simulate(cm.model, t_end, dt_out=dt_out, state=cm.state0, progress=progress,
+                    checkpoint=checkpoint, checkpoint_interval_s=checkpoint_interval_s,
+                    checkpoint_only=checkpoint_only, stepper=stepper)  # fmt: skip
 
-    full_ids = {k: c.node_ids for k, c in cons.items()}
-    setup = {
-        "snapshots": dict(snapshots),
-        "layout": cm.layout,
-        "build": build_kwargs,
-        "options": options,
-        "full_ids": full_ids,
-        "state0": cm.state0,
-    }
-    wall0 = _time.perf_counter()
-    n_workers = settings.workers
-    handles = (
-        [_LocalHandle(setup)]
-        if n_workers == 1
-        else [_ProcessHandle(setup, settings.threads_per_worker) for _ in range(n_workers)]
-    )
-    groups: dict[int, _GroupInfo] = {}
-    retired: dict = {}
-    merges: list = []
-    splits: list = []
-    rewinds = 0
-    worker_wall = [0.0] * n_workers
-    next_key = 0
-    rec = FrameRecorder(model)
-    cur = cm.state0.copy()
 
-    def nodes_of(members) -> np.ndarray:
-        return np.concatenate([full_ids[n] for n in members])
+class GroupStepper(Stepper):
+    """Steps a conveyor scene from frame to frame as groups of consignments in worker
+    processes, merging groups before they can touch and splitting them once apart (module
+    docstring). Driven by :func:`flexparcel.simulate.simulate`."""
 
-    def load(worker: int) -> float:
+    mode = "groups"
+
+    def __init__(self, cm, snapshots: Mapping, options: IntegratorOptions, build_kwargs: dict,
+                 settings: GroupSettings | None, dt_out: float) -> None:  # fmt: skip
+        self.settings = settings or GroupSettings()
+        self.options = options
+        self.dt_out = float(dt_out)
+        model = cm.model
+        cons = cm.consignments
+        self.names = [p.name for p in cm.layout.placements]
+        self.can_touch = {frozenset(p) for p in cm.consignment_pairs}
+        self.radius = {k: c.contact_radius for k, c in cons.items()}
+        self.full_ids = {k: c.node_ids for k, c in cons.items()}
+        # each placement's packaging surface (its faces as its contact sets see them): the
+        # only part that touches another consignment
+        self.surf = {}
+        for k, c in cons.items():
+            inside = np.zeros(model.node_count, bool)
+            inside[c.packaging] = True
+            tri = surface_triangles(model.cells, inside)
+            self.surf[k] = (np.asarray(c.packaging), np.ascontiguousarray(tri))
+        setup = {
+            "snapshots": dict(snapshots),
+            "layout": cm.layout,
+            "build": build_kwargs,
+            "options": options,
+            "full_ids": self.full_ids,
+            "state0": cm.state0,
+            # the scene's own builder (a module-level function: the spawned workers import it)
+            "build_model": type(cm).build,
+        }
+        n = self.settings.workers
+        self.handles = (
+            [_LocalHandle(setup)]
+            if n == 1
+            else [_ProcessHandle(setup, self.settings.threads_per_worker) for _ in range(n)]
+        )
+        self.groups: dict[int, _GroupInfo] = {}
+        self.retired: dict = {}
+        self.merges: list = []
+        self.splits: list = []
+        self.rewinds = 0
+        self.worker_wall = [0.0] * n
+        self._next_key = 0
+        self.cur: State | None = None
+
+    # ---------------------------------------------------------------- the Stepper protocol
+    def options_header(self) -> dict:
+        return json.loads(json.dumps(asdict(self.options)))
+
+    def begin(self, state: State) -> State:
+        self.cur = state.copy()
+        for n in self.names:
+            self._create((n,), None)
+        self._merge(self._close_pairs(margin=True), "export")
+        return self.cur
+
+    def resume(self, state: State, history: dict[str, np.ndarray]) -> State:
+        self.cur = state.copy()
+        info = json.loads(str(history["groups_json"]))
+        self.retired = info["retired"]
+        self.merges = info["merges"]
+        self.splits = info["splits"]
+        self.rewinds = info["rewinds"]
+        n = self.settings.workers
+        self.worker_wall = (info["worker_wall"] + [0.0] * n)[:n]
+        for i, members in enumerate(info["groups"]):
+            self._create(tuple(members), [_import_arrays(f"g{i}_", history)])
+        return self.cur
+
+    def advance(self, state: State, t_out: float, progress) -> State:
+        todo = sorted(self.groups)
+        while todo:
+            self._advance_groups(todo, t_out)
+            # two groups within reach: the prediction missed; do this frame again together
+            missed = self._close_pairs(margin=False)
+            todo = []
+            if missed:
+                self.rewinds += 1
+                todo = self._merge(missed, "rewind")  # merged at the frame before
+        self.cur.time = float(t_out)
+        if progress is not None:
+            progress(self.cur.time, t_out)
+        return self.cur
+
+    def after_frame(self, state: State, index: int) -> None:
+        self._merge(self._close_pairs(margin=True), "export")
+        self._split()
+        if (index + 1) % self.settings.rebalance_frames == 0:
+            self._rebalance()
+
+    def history(self) -> dict[str, np.ndarray]:
+        info = {
+            "groups": [list(g.names) for g in self.groups.values()],
+            "retired": self.retired, "merges": self.merges, "splits": self.splits,
+            "rewinds": self.rewinds, "worker_wall": self.worker_wall,
+        }  # fmt: skip
+        hist = {"groups_json": np.array(json.dumps(info))}
+        for i, k in enumerate(self.groups):
+            h = self.handles[self.groups[k].worker]
+            h.send("export", k)
+            hist.update(_export_arrays(f"g{i}_", h.recv()))
+        return hist
+
+    def statistics(self) -> dict:
+        total = dict(self.retired)
+        for g in self.groups.values():
+            _add_stats(total, g.stats)
+        base = asdict(Stats())
+        for k, v in base.items():
+            total.setdefault(k, v)
+        total["wall_s"] = {**base["wall_s"], **total.get("wall_s", {})}
+        # each final group's own statistics (since it was formed; its wall is its stepping)
+        per_group = [
+            {"members": list(g.names), "steps": int(g.stats["steps"]),
+             "newton_iterations": int(g.stats["newton_iterations"]),
+             "rejected_steps": int(g.stats["rejected_steps"]),
+             "wall_s": float(sum(g.costs))}
+            for g in self.groups.values()
+        ]  # fmt: skip
+        total["groups"] = {
+            "final": [list(g.names) for g in self.groups.values()],
+            "per_group": per_group,
+            "merges": self.merges,
+            "splits": self.splits,
+            "rewinds": self.rewinds,
+            "workers": self.settings.workers,
+            "worker_busy_s": self.worker_wall,
+        }
+        return total
+
+    def close(self) -> None:
+        for h in self.handles:
+            h.close()
+
+    # ---------------------------------------------------------------- groups and workers
+    def _advance_groups(self, todo: list[int], t_out: float) -> None:
+        """Advance the groups ``todo`` to ``t_out``, each worker its own at once."""
+        groups, n_workers = self.groups, self.settings.workers
+        busy = sorted({groups[k].worker for k in todo})
+        t_start = {w: _time.perf_counter() for w in busy}
+        # a worker alone at work, or one with most of the recent work (the others idle for
+        # most of the frame), gets the others' cores for its tangent assembly
+        share = {w: self._load(w) for w in busy}
+        total_load = sum(share.values())
+        for w in busy:
+            keys = [k for k in todo if groups[k].worker == w]
+            lead = len(busy) == 1 or share[w] > 0.8 * total_load
+            threads = None if n_workers == 1 else (
+                self.settings.threads_per_worker * (n_workers if lead else 1))  # fmt: skip
+            self.handles[w].send("advance", (keys, t_out, threads))
+        for w in busy:
+            for k, fr in self.handles[w].recv().items():
+                groups[k].costs.append(fr["wall"])
+                groups[k].stats = fr["stats"]
+                self._store(fr)
+            self.worker_wall[w] += _time.perf_counter() - t_start[w]
+
+    def _nodes_of(self, members) -> np.ndarray:
+        return np.concatenate([self.full_ids[n] for n in members])
+
+    def _load(self, worker: int) -> float:
         """Recent wall per frame of a worker's groups [s]; node counts before any frame."""
 
         def cost(g: _GroupInfo) -> float:
@@ -553,126 +651,118 @@ def integrate_by_groups(
                 return float(np.mean(g.costs[-5:]))
             return g.nodes.size if g.estimate is None else g.estimate
 
-        return sum(cost(g) for g in groups.values() if g.worker == worker)
+        return sum(cost(g) for g in self.groups.values() if g.worker == worker)
 
-    def create(members, exports, worker=None) -> int:
-        nonlocal next_key
-        key = next_key
-        next_key += 1
+    def _create(self, members, exports, worker=None) -> int:
+        key = self._next_key
+        self._next_key += 1
         if worker is None:
-            worker = min(range(n_workers), key=load)
-        h = handles[worker]
+            worker = min(range(self.settings.workers), key=self._load)
+        h = self.handles[worker]
         h.send("create", (key, tuple(members), exports))
         fr = h.recv()
-        groups[key] = _GroupInfo(tuple(members), worker, nodes_of(members), stats=fr["stats"])
+        self.groups[key] = _GroupInfo(
+            tuple(members), worker, self._nodes_of(members), stats=fr["stats"]
+        )
         return key
 
-    def take_out(key: int, how: str) -> dict:
-        g = groups.pop(key)
-        h = handles[g.worker]
+    def _take_out(self, key: int, how: str) -> dict:
+        g = self.groups.pop(key)
+        h = self.handles[g.worker]
         h.send(how, key)
         e = h.recv()
         h.send("drop", key)
         h.recv()
         return e
 
-    def retire(key: int, how: str) -> dict:
-        g = groups[key]
-        _add_stats(retired, g.stats)
-        return take_out(key, how)
+    def _retire(self, key: int, how: str) -> dict:
+        _add_stats(self.retired, self.groups[key].stats)
+        return self._take_out(key, how)
 
-    def store(fr: dict) -> None:
+    def _store(self, fr: dict) -> None:
         ids = fr["nodes"]
-        cur.positions[ids] = fr["positions"]
-        cur.rotations[ids] = fr["rotations"]
-        cur.velocities[ids] = fr["velocities"]
+        self.cur.positions[ids] = fr["positions"]
+        self.cur.rotations[ids] = fr["rotations"]
+        self.cur.velocities[ids] = fr["velocities"]
 
-    # each placement's packaging surface: the only part that touches another consignment
-    tri = model.triangles
-    surf = {}
-    for k, c in cons.items():
-        inside = np.zeros(model.node_count, bool)
-        inside[c.packaging] = True
-        surf[k] = (np.asarray(c.packaging), np.ascontiguousarray(tri[inside[tri].all(axis=1)]))
-
-    def motion() -> dict:
+    def _motion(self) -> dict:
         """Per placement: packaging bounding box, mean velocity u and largest speed about it."""
         out = {}
-        for k, (nodes, _) in surf.items():
-            x = cur.positions[nodes]
-            v = cur.velocities[nodes, :3]
+        for k, (nodes, _) in self.surf.items():
+            x = self.cur.positions[nodes]
+            v = self.cur.velocities[nodes, :3]
             u = v.mean(axis=0)
             out[k] = (x.min(axis=0), x.max(axis=0), u, float(np.sqrt(((v - u) ** 2).sum(1)).max()))
         return out
 
-    def near(mot, m: str, n: str, margin: bool, extra: float = 0.0) -> bool:
+    def _near(self, mot, m: str, n: str, margin: bool, extra: float = 0.0) -> bool:
         """Whether placements m and n are within their merge gap (margin: the lookahead
         and slack added; else the contact reach alone) plus ``extra``."""
         lm, hm, um, sm = mot[m]
         ln, hn, un, sn = mot[n]
-        lim = radius[m] + radius[n] + extra
+        lim = self.radius[m] + self.radius[n] + extra
         if margin:
             rel = float(np.linalg.norm(um - un)) + sm + sn
-            lim += settings.lookahead * dt_out * rel + settings.merge_slack
+            lim += self.settings.lookahead * self.dt_out * rel + self.settings.merge_slack
         if box_gap(lm, hm, ln, hn) >= lim:  # boxes apart: the meshes are too
             return False
-        return mesh_gap(cur.positions, surf[m], surf[n], lim) < lim
+        return mesh_gap(self.cur.positions, self.surf[m], self.surf[n], lim) < lim
 
-    def close_pairs(margin: bool):
+    def _close_pairs(self, margin: bool):
         """Pairs of group keys that must be one model (margin: predicted for the next
         frame; else: already within reach)."""
-        mot = motion()
+        mot = self._motion()
         out = []
-        keys = sorted(groups)
+        keys = sorted(self.groups)
         for i, a in enumerate(keys):
             for b in keys[i + 1 :]:
-                if any(frozenset((m, n)) in can_touch and near(mot, m, n, margin)
-                       for m in groups[a].names for n in groups[b].names):  # fmt: skip
+                if any(frozenset((m, n)) in self.can_touch and self._near(mot, m, n, margin)
+                       for m in self.groups[a].names for n in self.groups[b].names):  # fmt: skip
                     out.append((a, b))
         return out
 
-    def split() -> None:
+    def _split(self) -> None:
         """Split merged groups into the parts that are farther apart than the merge gap plus
         ``split_slack``: each part takes the group's state and history (its own nodes and
         contacts), and steps on its own again."""
-        mot = motion()
-        for key in [k for k, g in groups.items() if len(g.names) > 1]:
-            g = groups[key]
+        mot = self._motion()
+        for key in [k for k, g in self.groups.items() if len(g.names) > 1]:
+            g = self.groups[key]
             linked = [(m, n) for i, m in enumerate(g.names) for n in g.names[i + 1 :]
-                      if frozenset((m, n)) in can_touch
-                      and near(mot, m, n, True, settings.split_slack)]  # fmt: skip
+                      if frozenset((m, n)) in self.can_touch
+                      and self._near(mot, m, n, True, self.settings.split_slack)]  # fmt: skip
             parts = _components(list(g.names), linked)
             if len(parts) < 2:
                 continue
             cost = float(np.mean(g.costs[-5:])) if g.costs else None
             size = g.nodes.size
-            e = retire(key, "export")
-            splits.append({"time": float(e["time"]), "parts": [list(p) for p in parts]})
+            e = self._retire(key, "export")
+            self.splits.append({"time": float(e["time"]), "parts": [list(p) for p in parts]})
             for members in parts:
-                k2 = create(tuple(members), [e])
+                k2 = self._create(tuple(members), [e])
                 if cost is not None:  # dealt by its share of the group's cost
-                    groups[k2].estimate = cost * groups[k2].nodes.size / size
+                    self.groups[k2].estimate = cost * self.groups[k2].nodes.size / size
 
-    def components(pairs) -> list[list[int]]:
-        return [sorted(c) for c in _components(list(groups), pairs) if len(c) > 1]
-
-    def merge(pairs, how: str) -> list[int]:
+    def _merge(self, pairs, how: str) -> list[int]:
         made = []
-        for comp in components(pairs):
-            members = tuple(n for n in names if any(n in groups[k].names for k in comp))
+        comps = [sorted(c) for c in _components(list(self.groups), pairs) if len(c) > 1]
+        for comp in comps:
+            members = tuple(n for n in self.names if any(n in self.groups[k].names for k in comp))
             # the members' recent cost: a merged group is dealt by it, not by its size
-            cost = sum(float(np.mean(groups[k].costs[-5:])) for k in comp if groups[k].costs)
-            exports = [retire(k, how) for k in comp]
-            merges.append({"time": float(exports[0]["time"]), "members": list(members)})
-            made.append(create(members, exports))
-            groups[made[-1]].estimate = cost
+            cost = sum(float(np.mean(self.groups[k].costs[-5:])) for k in comp
+                       if self.groups[k].costs)  # fmt: skip
+            exports = [self._retire(k, how) for k in comp]
+            self.merges.append({"time": float(exports[0]["time"]), "members": list(members)})
+            made.append(self._create(members, exports))
+            self.groups[made[-1]].estimate = cost
         return made
 
-    def rebalance() -> None:
+    def _rebalance(self) -> None:
         """Deal the groups to the workers largest recent cost first; move those whose
         worker changes if that shortens the slowest worker by 10 %."""
-        cost = {k: float(np.mean(g.costs[-settings.rebalance_frames :])) for k, g in groups.items()
-                if g.costs}  # fmt: skip
+        groups, n_workers = self.groups, self.settings.workers
+        frames = self.settings.rebalance_frames
+        cost = {k: float(np.mean(g.costs[-frames:])) for k, g in groups.items() if g.costs}
         if len(cost) != len(groups) or n_workers == 1:
             return
         now = [0.0] * n_workers
@@ -689,123 +779,6 @@ def integrate_by_groups(
         for k, w in assign.items():
             if groups[k].worker != w:
                 g = groups[k]
-                e = take_out(k, "export")
-                key = create(g.names, [e], worker=w)
+                e = self._take_out(k, "export")
+                key = self._create(g.names, [e], worker=w)
                 groups[key].costs = g.costs
-
-    try:
-        if resumed is None:
-            rec.record(cur)
-            for n in names:
-                create((n,), None)
-            merge(close_pairs(margin=True), "export")
-        else:
-            rec.extend(resumed.frames)
-            cur = resumed.state.copy()
-            info = json.loads(str(resumed.history["groups_json"]))
-            retired = info["retired"]
-            merges = info["merges"]
-            splits = info["splits"]
-            rewinds = info["rewinds"]
-            worker_wall = (info["worker_wall"] + [0.0] * n_workers)[:n_workers]
-            for i, members in enumerate(info["groups"]):
-                create(tuple(members), [_import_arrays(f"g{i}_", resumed.history)])
-            out_times = out_times[out_times > cur.time + 1e-12 * max(1.0, abs(cur.time))]
-            if checkpoint_only:
-                out_times = out_times[:0]
-        wall_before = float(resumed.history.get("wall_total", 0.0)) if resumed else 0.0
-
-        def save(complete: bool) -> None:
-            hist = {"wall_total": np.array(wall_before + _time.perf_counter() - wall0)}
-            info = {
-                "groups": [list(g.names) for g in groups.values()],
-                "retired": retired, "merges": merges, "splits": splits, "rewinds": rewinds,
-                "worker_wall": worker_wall,
-            }  # fmt: skip
-            hist["groups_json"] = np.array(json.dumps(info))
-            for i, k in enumerate(groups):
-                h = handles[groups[k].worker]
-                h.send("export", k)
-                hist.update(_export_arrays(f"g{i}_", h.recv()))
-            head = {**header, "version": CHECKPOINT_VERSION, "complete": complete}
-            save_checkpoint(checkpoint, RunCheckpoint(head, rec.frames(), cur, hist))
-
-        last_save = _time.perf_counter()
-        for i_frame, t_out in enumerate(out_times):
-            todo = sorted(groups)
-            while todo:
-                busy = sorted({groups[k].worker for k in todo})
-                t_start = {w: _time.perf_counter() for w in busy}
-                # a worker alone at work, or one with most of the recent work (the others
-                # idle for most of the frame), gets the others' cores for its tangent assembly
-                share = {w: load(w) for w in busy}
-                total_load = sum(share.values())
-                for w in busy:
-                    keys = [k for k in todo if groups[k].worker == w]
-                    lead = len(busy) == 1 or share[w] > 0.8 * total_load
-                    threads = None if n_workers == 1 else (
-                        settings.threads_per_worker * (n_workers if lead else 1))  # fmt: skip
-                    handles[w].send("advance", (keys, t_out, threads))
-                for w in busy:
-                    for k, fr in handles[w].recv().items():
-                        groups[k].costs.append(fr["wall"])
-                        groups[k].stats = fr["stats"]
-                        store(fr)
-                    worker_wall[w] += _time.perf_counter() - t_start[w]
-                # two groups within reach: the prediction missed; do this frame again together
-                missed = close_pairs(margin=False)
-                todo = []
-                if missed:
-                    rewinds += 1
-                    todo = merge(missed, "rewind")  # merged at the frame before
-            cur.time = float(t_out)
-            rec.record(cur)
-            if progress is not None:
-                progress(cur.time, t_end)
-            merge(close_pairs(margin=True), "export")
-            split()
-            if (i_frame + 1) % settings.rebalance_frames == 0:
-                rebalance()
-            if checkpoint is not None and t_out != out_times[-1]:
-                if _time.perf_counter() - last_save >= checkpoint_interval_s:
-                    save(complete=False)
-                    last_save = _time.perf_counter()
-        if (
-            checkpoint is not None
-            and not checkpoint_only
-            and not (resumed is not None and resumed.header.get("complete"))
-        ):
-            save(complete=True)
-        total = dict(retired)
-        for g in groups.values():
-            _add_stats(total, g.stats)
-        final_groups = [list(g.names) for g in groups.values()]
-        # each final group's own statistics (since it was formed; its wall is its stepping)
-        per_group = [
-            {"members": list(g.names), "steps": int(g.stats["steps"]),
-             "newton_iterations": int(g.stats["newton_iterations"]),
-             "rejected_steps": int(g.stats["rejected_steps"]),
-             "wall_s": float(sum(g.costs))}
-            for g in groups.values()
-        ]  # fmt: skip
-    finally:
-        for h in handles:
-            h.close()
-    wall = wall_before + _time.perf_counter() - wall0
-    total.setdefault("wall_s", {})
-    base = asdict(Stats())
-    for k, v in base.items():
-        total.setdefault(k, v)
-    total["wall_s"] = {**base["wall_s"], **total["wall_s"], "total": wall}
-    total["dof_count"] = model.dof_count
-    total["simulated_s"] = float(t_end - t0)
-    total["groups"] = {
-        "final": final_groups,
-        "per_group": per_group,
-        "merges": merges,
-        "splits": splits,
-        "rewinds": rewinds,
-        "workers": n_workers,
-        "worker_busy_s": worker_wall,
-    }
-    return rec.result(cur, total)

@@ -52,6 +52,7 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
+from flexparcel.builder import ModelBuilder
 from flexparcel.consignments.build import (
     GLUED_STRIP_WIDTH,
     Consignment,
@@ -65,9 +66,9 @@ from flexparcel.contact.geometry import segment_segment
 from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.io.tomlfile import read_toml
-from flexparcel.model.builder import Model, ModelBuilder, State
 from flexparcel.model.checks import finite_number
 from flexparcel.model.mesh import shell_edges
+from flexparcel.model.model import Model, State
 from flexparcel.scenarios.consignment_tests import consignment_options
 from flexparcel.scenarios.conveyor import (
     ConveyorParts,
@@ -609,6 +610,12 @@ class ConveyorModel:
     def node_sets(self) -> dict[str, np.ndarray]:
         """Placement name -> all node ids of that consignment (for the responses)."""
         return {k: c.node_ids for k, c in self.consignments.items()}
+
+    @staticmethod
+    def build(snapshots: Mapping[str, Snapshot], layout: SceneLayout, **kwargs) -> ConveyorModel:
+        """:func:`build_conveyor_model`; the group-by-group integration builds its groups'
+        sub-scenes with it (so that it needs no import of this module)."""
+        return build_conveyor_model(snapshots, layout, **kwargs)
 
 
 def build_conveyor_model(

@@ -17,9 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from flexparcel.builder import ModelBuilder
 from flexparcel.contact.law import ContactLaw
-from flexparcel.model.builder import Model, ModelBuilder
 from flexparcel.model.materials import ShellMaterial
+from flexparcel.model.model import Model
 from flexparcel.model.rigid import RoundedBox
 from flexparcel.scenarios.envelope import two_layer_envelope
 

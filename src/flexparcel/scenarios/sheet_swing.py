@@ -11,9 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from flexparcel.builder import ModelBuilder
 from flexparcel.model import mesh
-from flexparcel.model.builder import Model, ModelBuilder
 from flexparcel.model.materials import ShellMaterial
+from flexparcel.model.model import Model
 
 __all__ = ["SheetSwing", "sheet_swing_model"]
 

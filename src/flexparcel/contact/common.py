@@ -1,0 +1,56 @@
+"""Pieces shared by the contact sets: stick-model history and zeroed kernel outputs."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["StickAnchors", "pair_blocks", "check_history"]
+
+
+class StickAnchors:
+    """Stick-model history of coupled contacts (node-box pairs, node-face sets): an anchor
+    point (3,) per contact and whether it holds one. The kernels read the committed anchors of
+    the last accepted step and write each evaluation's anchors to the trial arrays (a contact
+    out of touch writes none, so it loses its spring); :meth:`commit` keeps the trial of the
+    accepted step."""
+
+    def __init__(self, count: int) -> None:
+        self.anchor = np.zeros((count, 3))
+        self.has = np.zeros(count)
+        self.anchor_trial = np.zeros((count, 3))
+        self.has_trial = np.zeros(count)
+
+    def kernel_args(self):
+        return self.anchor, self.has, self.anchor_trial, self.has_trial
+
+    def commit(self) -> None:
+        # swap, not copy: the kernels rewrite every trial flag at each evaluation, so the old
+        # committed arrays can serve as the next trial
+        self.anchor, self.anchor_trial = self.anchor_trial, self.anchor
+        self.has, self.has_trial = self.has_trial, self.has
+
+    def history(self) -> dict[str, np.ndarray]:
+        return {"anchor": self.anchor, "has": self.has}
+
+    def restore(self, history: dict[str, np.ndarray]) -> None:
+        self.anchor = check_history(history, "anchor", self.anchor)
+        self.has = check_history(history, "has", self.has)
+
+
+def check_history(history: dict[str, np.ndarray], key: str, like: np.ndarray) -> np.ndarray:
+    """``history[key]`` as a fresh array of ``like``'s shape and dtype, else ``ValueError``."""
+    if key not in history:
+        raise ValueError(f"contact history: missing {key!r}")
+    v = np.asarray(history[key])
+    if v.shape != like.shape:
+        raise ValueError(
+            f"contact history: {key!r} has shape {v.shape}, this model needs {like.shape}"
+        )
+    return v.astype(like.dtype, copy=True)
+
+
+def pair_blocks(count: int, width: int):
+    """Zeroed outputs of a coupled contact kernel: position and velocity blocks (count, width,
+    width) and DOF numbers (count, width)."""
+    return (np.zeros((count, width, width)), np.zeros((count, width, width)),
+            np.zeros((count, width), dtype=np.int64))  # fmt: skip
