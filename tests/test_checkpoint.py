@@ -8,7 +8,12 @@ import pytest
 
 import flexparcel as fp
 from conftest import SHEET_T, soft_contact_law
-from flexparcel.io.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from flexparcel.io.checkpoint import (
+    CHECKPOINT_VERSION,
+    CheckpointError,
+    load_checkpoint,
+    save_checkpoint,
+)
 from flexparcel.model.rigid import RoundedBox
 from flexparcel.scenarios.conveyor import add_conveyor
 
@@ -148,7 +153,9 @@ def test_bad_checkpoint_files_name_the_file(tmp_path, straight):
     ck = load_checkpoint(path)
     ck.header["version"] = 99
     save_checkpoint(path, ck)
-    with pytest.raises(CheckpointError, match="version 99, this flexparcel reads version 1"):
+    with pytest.raises(
+        CheckpointError, match=f"version 99, this flexparcel reads version {CHECKPOINT_VERSION}"
+    ):
         fp.simulate(model, T_END, dt_out=DT_OUT, state=s0, checkpoint=path)
     ck.header = {"format": "something else"}
     save_checkpoint(path, ck)

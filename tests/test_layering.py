@@ -257,3 +257,16 @@ def test_physics_reaches_no_cli_or_viz():
 def test_model_imports_no_elements_or_contact():
     bad = _direct(("model",), lambda m: _in(m, ("elements", "contact")))
     assert not bad, "model imports element/contact code:\n" + "\n".join(bad)
+
+
+def test_no_two_modules_import_each_other():
+    # a pair of modules that import each other (at any depth, even inside a function) is a
+    # file cycle: neither can be read, tested or replaced alone. Packages' __init__ files
+    # (lazy name maps) are left out: they name their own submodules by design.
+    modules = _sources()
+    plain = {m for m, path in modules.items() if path.name != "__init__.py"}
+    direct = {m: {t for t, _ in _imports(m)} & plain for m in plain}
+    pairs = sorted({tuple(sorted((a, b))) for a in plain for b in direct[a] if a in direct[b]})
+    assert not pairs, "modules importing each other:\n" + "\n".join(
+        f"{a} <-> {b}" for a, b in pairs
+    )

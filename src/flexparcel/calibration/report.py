@@ -14,14 +14,10 @@ import io
 import json
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from flexparcel.io.atomic import write_atomic
-
-if TYPE_CHECKING:  # pragma: no cover
-    from flexparcel.calibration.study import Study
 
 __all__ = ["write_report", "write_atomic"]
 
@@ -250,8 +246,10 @@ img{max-width:100%;margin:.3em 0}h2{border-bottom:2px solid #ddd;margin-top:1.6e
 """
 
 
-def write_report(study: Study) -> Path:
-    """Write ``results.json``, ``figures/*.png`` and ``report.html``; returns the HTML path."""
+def write_report(study) -> Path:
+    """Write ``results.json``, ``figures/*.png`` and ``report.html`` of ``study`` (a
+    :class:`flexparcel.calibration.study.Study`, which calls this; not imported here, so that
+    the two modules form no cycle); returns the HTML path."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)

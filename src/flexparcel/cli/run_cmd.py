@@ -29,7 +29,7 @@ _TEST_ONLY = ("consignment", "snapshot", "assignments")
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "run",
-        help="run the swing or a drop test on a consignment",
+        help="run a scenario: the swing test, a drop test or the conveyor",
         description="Run the paper's swing test (20 mm clamped, released horizontal, 1.4 s) "
         "or drop test (200 mm onto a rigid plate standing on its edge or lying flat, 0.3 s) "
         "and write DIR/responses.json, DIR/results.npz, ParaView files DIR/paraview/*.pvd and "

@@ -17,12 +17,13 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
-if TYPE_CHECKING:  # pragma: no cover
-    from flexparcel.model.model import Model, State
+# Model and State (flexparcel.model.model) hold lists of these classes; they are named in
+# annotations as Any so that the two modules do not import each other
+Model = State = Any
 
 __all__ = ["ElementGroup", "ContactSet", "ContactContext", "ContactOutput"]
 
