@@ -19,6 +19,7 @@ _COMMAND_MODULES = (
     "flexparcel.cli.demo_cmd",
     "flexparcel.cli.assemble_cmd",
     "flexparcel.cli.run_cmd",
+    "flexparcel.cli.view_cmd",
     "flexparcel.cli.bench_cmd",
     "flexparcel.cli.verify_cmd",
     "flexparcel.cli.calibrate_cmd",

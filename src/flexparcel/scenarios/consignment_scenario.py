@@ -2,10 +2,13 @@
 Table 3 parameters (paper units, defaults: the packaging's own modulus and damping ratio and
 Table 6's contact values), and the files a user opens.
 
-Files of a run (in ``out_dir``): ``responses.json``, ``results.npz``, ``paraview/packaging.pvd``
-(+ ``paraview/content.pvd`` for a rigid content), and the pictures of the caller's picture
-writer (:mod:`flexparcel.viz.scenario_pictures`: ``frames.png``, side views at the start, the
-events of the response curve and the end, and ``response.png``, the curve).
+Files of a run (in ``out_dir``): ``responses.json``, ``results.npz`` (with the scene's
+``parts`` in its metadata, :func:`flexparcel.io.paraview.scene_parts`),
+``paraview/packaging.pvd`` (+ ``paraview/content.pvd``, the rigid content's rounded box, and
+``paraview/plate.pvd`` for a drop test; fields: :mod:`flexparcel.io.paraview`), and what the
+caller's picture writer draws (:mod:`flexparcel.viz.scenario_pictures`: ``frames.png``, side
+views at the start, the events of the response curve and the end, ``response.png``, the
+curve, and ``view.html``, the 3-D viewer in the browser).
 """
 
 from __future__ import annotations
@@ -128,7 +131,8 @@ class ConsignmentTest(ScenarioBase):
     def write(self, result: ScenarioResult, out_dir: str | Path, *,
               extra: Mapping[str, Any] | None = None,
               pictures: PictureWriter | None = None) -> dict[str, Path]:  # fmt: skip
-        from flexparcel.io.paraview import write_paraview, write_paraview_boxes
+        from flexparcel.consignments.materials import FLEXIBLE_CONTENT
+        from flexparcel.io.paraview import scene_parts, write_scene_paraview
         from flexparcel.io.results import save_result
 
         run: TestRun = result.record
@@ -139,23 +143,27 @@ class ConsignmentTest(ScenarioBase):
         files: dict[str, Path] = {"json": out / "responses.json"}
         # the responses first: a long run's numbers survive a failure while writing pictures
         write_json(files["json"], summary)
+        parts = scene_parts(model, {c.build.spec.id: c}, content_material=FLEXIBLE_CONTENT,
+                            plate_z=_plate_z(model))  # fmt: skip
         files["results"] = save_result(out / "results.npz", res, model, {
             "test": self.name, "consignment": c.build.to_dict(), "responses": run.responses,
-            "parameters": run.parameters,
+            "parameters": run.parameters, "parts": parts,
         })  # fmt: skip
-        files["paraview"] = write_paraview(out / "paraview", res, model, name="packaging")
-        rotations = content_rotations(run)
-        if rotations is not None:
-            i = c.content_body
-            files["paraview_content"] = write_paraview_boxes(
-                out / "paraview", res.time, res.positions[:, [i]], rotations[:, None],
-                [c.content_box], name="content",
-            )  # fmt: skip
+        files.update(write_scene_paraview(out / "paraview", res, model, parts, name="packaging",
+                                          content_name="content"))  # fmt: skip
         if pictures is not None:
             files.update(pictures(result, out))
         summary["files"] = {k: str(v) for k, v in files.items()}
         write_json(files["json"], summary)
         return files
+
+
+def _plate_z(model) -> float | None:
+    """Height [m] of a rigid plate under the consignment (a plane with normal +z: the drop
+    tests'), or None."""
+    normals = np.asarray(model.plane_normal).reshape(-1, 3)
+    up = np.flatnonzero(np.isclose(normals[:, 2], 1.0))
+    return float(np.asarray(model.plane_point).reshape(-1, 3)[up[0], 2]) if up.size else None
 
 
 def mm_response(value_m: float | None, description: str, note: str = "") -> Response:

@@ -14,10 +14,13 @@ Responses, per placement NAME: ``NAME.exit_time`` [s], ``NAME.final_x`` / ``NAME
 outcome, no packaging node went behind a deflector).
 
 Files (in ``out_dir``): ``responses.json`` (per-consignment trajectories and responses),
-``results.npz``, ``paraview/conveyor.pvd`` (all nodes: packaging and deflector faces) +
-``paraview/contents.pvd`` (rigid contents as boxes), and the pictures of the caller's
-picture writer (:mod:`flexparcel.viz.scenario_pictures`: ``snapshots.png``,
-``trajectories.png``, ``animation.gif``).
+``results.npz`` (with the scene's ``parts`` in its metadata), ``contact_forces.npz`` (each
+packaging node's deflector normal force per frame), ``paraview/conveyor.pvd`` (the
+consignments: packaging and flexible contents) + ``paraview/contents.pvd`` (rigid contents,
+rounded boxes) + ``paraview/deflectors.pvd`` + ``paraview/belt.pvd`` (fields:
+:mod:`flexparcel.io.paraview`), and what the caller's picture writer draws
+(:mod:`flexparcel.viz.scenario_pictures`: ``snapshots.png``, ``trajectories.png``,
+``animation.gif`` and ``view.html``, the 3-D viewer in the browser).
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from flexparcel.scenarios.base import (
     T_END,
@@ -217,9 +222,8 @@ class ConveyorScenario(ScenarioBase):
     def write(self, result: ScenarioResult, out_dir: str | Path, *,
               extra: Mapping[str, Any] | None = None,
               pictures: PictureWriter | None = None) -> dict[str, Path]:  # fmt: skip
-        from scipy.spatial.transform import Rotation
-
-        from flexparcel.io.paraview import write_paraview, write_paraview_boxes
+        from flexparcel.consignments.materials import FLEXIBLE_CONTENT
+        from flexparcel.io.paraview import scene_parts, write_scene_paraview
         from flexparcel.io.results import save_result
 
         out = Path(out_dir)
@@ -229,20 +233,24 @@ class ConveyorScenario(ScenarioBase):
         summary = {**self.summary(result), **(extra or {})}
         files: dict[str, Path] = {"json": out / "responses.json"}
         write_json(files["json"], summary)  # the numbers first: they survive a failing picture
+        scene = cm.layout.conveyor
+        parts = scene_parts(
+            cm.model, cm.consignments, content_material=FLEXIBLE_CONTENT,
+            belt={"length_m": scene.belt_length, "width_m": scene.belt_width,
+                  "speed_m_s": scene.belt_speed},
+            deflectors=cm.parts.deflector_vertices,
+            deflector_thickness=scene.deflector_thickness,
+        )  # fmt: skip
         files["results"] = save_result(out / "results.npz", res, cm.model, {
             "scenario": "conveyor", "layout": cm.layout.to_dict(),
             "consignments": {k: c.node_ids.tolist() for k, c in cm.consignments.items()},
+            "parts": parts,
         })  # fmt: skip
-        files["paraview"] = write_paraview(out / "paraview", res, cm.model, name="conveyor")
-        bodies = [c for c in cm.consignments.values() if c.content_body is not None]
-        if bodies:
-            ids = [c.content_body for c in bodies]
-            rv = res.rotation_vectors[:, ids]
-            rot = Rotation.from_rotvec(rv.reshape(-1, 3)).as_matrix().reshape(*rv.shape[:2], 3, 3)
-            files["paraview_contents"] = write_paraview_boxes(
-                out / "paraview", res.time, res.positions[:, ids], rot,
-                [c.content_box for c in bodies], name="contents",
-            )  # fmt: skip
+        force = _deflector_node_forces(cm, res)
+        files["contact_forces"] = _save_contact_forces(out / "contact_forces.npz", res.time, force)
+        files.update(write_scene_paraview(out / "paraview", res, cm.model, parts, name="conveyor",
+                                          content_name="contents",
+                                          contact_force=force))  # fmt: skip
         if pictures is not None:
             files.update(pictures(result, out))
         summary["files"] = {k: str(v) for k, v in files.items()}
@@ -275,3 +283,39 @@ def _consignment_responses(name: str, r: Any, crossing: float | None) -> dict[st
             float(t), "s", f"time in contact with deflector {i}"
         )
     return out
+
+
+def _deflector_node_forces(cm: Any, res: Any) -> np.ndarray:
+    """Deflector normal force on each packaging node at the recorded frames [N], shape
+    (k, n, 3): the law of
+    :func:`~flexparcel.scenarios.conveyor_scene.deflector_normal_forces` (which sums it per
+    consignment) per node, along each deflector's upstream normal."""
+    from flexparcel.contact.law import normal_force_packed
+
+    pos = np.asarray(res.positions)
+    out = np.zeros(pos.shape)
+    for name, c in cm.consignments.items():
+        law = cm.laws[name]["deflector"].packed()
+        h = c.contact_radius
+        p = pos[:, c.packaging]
+        v = np.asarray(res.velocities)[:, c.packaging, :3]
+        for g in cm.parts.deflectors:
+            dist, on = g.over_face(p, below=h)
+            s = h - dist
+            on &= (s > 0.0) & (dist > -0.5 * cm.parts.scene.deflector_thickness)
+            rate = -(v @ g.normal)
+            for k, i in zip(*np.nonzero(on), strict=True):
+                f = normal_force_packed(float(s[k, i]), float(rate[k, i]), law)[0]
+                out[k, c.packaging[i]] += f * np.asarray(g.normal)
+    return out
+
+
+def _save_contact_forces(path: Path, time: Any, force: np.ndarray) -> Path:
+    """``contact_forces.npz``: the non-zero node forces as ``frame`` (m,), ``node`` (m,),
+    ``force_N`` (m, 3) [N], and ``time`` (k,) [s] (docs/file-formats.md)."""
+    from flexparcel.io.atomic import write_atomic
+
+    frame, node = np.nonzero(np.any(force != 0.0, axis=2))
+    arrays = {"time": np.asarray(time, float), "frame": frame.astype(np.int64),
+              "node": node.astype(np.int64), "force_N": force[frame, node]}  # fmt: skip
+    return write_atomic(path, lambda f: np.savez_compressed(f, **arrays))

@@ -6,7 +6,13 @@ do not import the plotting layer, the caller passes these in.
   and the end) and ``response.png`` (the free end's position relative to the clamp edge with
   both swings marked; the centre-of-mass height with the touch and the rebound peak marked);
 * conveyor: ``snapshots.png`` (top views at 0, 1 and 2 s, or at 0, t_end / 2 and t_end for
-  shorter runs), ``trajectories.png`` and ``animation.gif``.
+  shorter runs), ``trajectories.png`` and ``animation.gif``;
+* every scenario (:func:`pictures_for`, unless ``viewer=False``): ``view.html``, the 3-D
+  viewer in the browser (:mod:`flexparcel.viz.viewer`), from the ``results.npz`` the
+  scenario's ``write`` saved just before. The command line (``run``, ``demo``, ``bench``)
+  passes these writers, so every run through it leaves a ``view.html``; a scenario run from
+  Python gets one by passing ``pictures=pictures_for(name)`` to its ``write`` (or later with
+  ``flexparcel view DIR``).
 """
 
 from __future__ import annotations
@@ -22,6 +28,7 @@ from flexparcel.viz.consignment import Box
 __all__ = [
     "PICTURES",
     "pictures_for",
+    "with_viewer",
     "swing_pictures",
     "drop_pictures",
     "conveyor_pictures",
@@ -175,6 +182,29 @@ PICTURES: dict[str, Callable[[ScenarioResult, Path], Mapping[str, Path]]] = {
 """Picture writer of each built-in scenario."""
 
 
-def pictures_for(name: str) -> Callable[[ScenarioResult, Path], Mapping[str, Path]] | None:
-    """The picture writer of scenario ``name``, or None (a scenario without pictures)."""
-    return PICTURES.get(name)
+def with_viewer(
+    pictures: Callable[[ScenarioResult, Path], Mapping[str, Path]] | None,
+) -> Callable[[ScenarioResult, Path], Mapping[str, Path]]:
+    """``pictures`` (or none) followed by the viewer page ``view.html``
+    (:func:`flexparcel.viz.viewer.viewer_writer`); returns name -> path of both."""
+
+    def write(result: ScenarioResult, out: Path) -> dict[str, Path]:
+        from flexparcel.viz.viewer import viewer_writer
+
+        files = dict(pictures(result, out)) if pictures is not None else {}
+        files.update(viewer_writer(result, Path(out)))
+        return files
+
+    return write
+
+
+def pictures_for(
+    name: str, *, viewer: bool = True
+) -> Callable[[ScenarioResult, Path], Mapping[str, Path]] | None:
+    """The picture writer of scenario ``name`` with the viewer page ``view.html`` (any
+    scenario, built-in or not); with ``viewer=False`` the pictures alone, or None for a
+    scenario without pictures."""
+    pictures = PICTURES.get(name)
+    if not viewer:
+        return pictures
+    return with_viewer(pictures)
