@@ -4,7 +4,11 @@ Each case returns a dict with the computed values, the reference and the error, 
 (which assert tolerances argued from the discretisation) and ``flexparcel verify`` (which
 reports the figures) share one implementation. References: the package data folder
 :data:`REFERENCE_DIR` (``flexparcel/data/verification``, its README names the sources: Sze, Liu &
-Lo 2004, FEAD 40:1551; Euler-Bernoulli cantilever; Leissa 1973).
+Lo 2004, FEAD 40:1551; Euler-Bernoulli cantilever; Leissa 1973) and, for the linear shell
+benchmarks (:func:`cook_membrane`, :func:`macneal_cantilever`, :func:`scordelis_lo_roof`,
+:func:`pinched_cylinder`), the reference values in their docstrings (MacNeal & Harder 1985,
+Finite Elements in Analysis and Design 1:3-20; Cook 1974). docs/shell-verification.md tabulates
+them.
 """
 
 from __future__ import annotations
@@ -28,6 +32,13 @@ __all__ = [
     "strip_frequencies",
     "plate_frequencies",
     "natural_frequencies",
+    "cook_membrane",
+    "macneal_cantilever",
+    "scordelis_lo_roof",
+    "pinched_cylinder",
+    "SHELL_BENCHMARK_MESHES",
+    "shell_benchmarks",
+    "benchmark_table",
     "run_all",
 ]
 
@@ -140,6 +151,184 @@ def plate_frequencies(n: int = 12) -> dict:
     return {"lambda": lam, "reference": ref, "rel_err": lam / ref - 1.0}
 
 
+# --------------------------------------------------------------------------- linear benchmarks
+# The references are linear (small-displacement) solutions, while solve_static is geometrically
+# nonlinear: each case scales its load so that the reference displacement is LINEAR_SPAN of the
+# model's size, and divides the result by that scale. The nonlinear terms are then of relative
+# size ~ LINEAR_SPAN (rotations ~ 1e-5 rad), 1e3 times below the smallest tolerance used.
+LINEAR_SPAN = 1e-5
+
+
+def _load_scale(reference: float, span: float) -> float:
+    return min(1.0, LINEAR_SPAN * span / reference)
+
+
+def _result(case: str, mesh_label: str, value: float, reference: float, **extra) -> dict:
+    return {
+        "case": case,
+        "mesh": mesh_label,
+        "value": float(value),
+        "reference": float(reference),
+        "ratio": float(value / reference),
+        "rel_err": float(value / reference - 1.0),
+        **extra,
+    }
+
+
+def _edge_loads(count: int, total: float) -> np.ndarray:
+    """Consistent nodal loads of a uniform edge load ``total`` on ``count`` equal segments."""
+    w = np.full(count + 1, total / count)
+    w[[0, -1]] *= 0.5
+    return w
+
+
+def cook_membrane(n: int = 16) -> dict:
+    """Cook's membrane (Cook 1974): tapered panel, corners (0, 0), (48, 44), (48, 60), (0, 44),
+    clamped at x = 0 (translations; the drilling rotation stays free, as u = v = 0 along a wall
+    does not make the rotation (v,x - u,y)/2 vanish), E = 1, nu = 1/3, t = 1, uniform shear load
+    1 in total on the right edge; an n x n mesh (n even). Reference: vertical displacement of
+    the midpoint of the loaded edge, (48, 52), 23.96 (the converged value of the literature,
+    e.g. Felippa 2003). The top corner (48, 60) moves more, about 25.2 (6-node triangles,
+    extrapolated); it is returned as ``corner``."""
+    if n % 2:
+        raise ValueError(f"cook_membrane: n must be even (a node at mid-edge), got {n}")
+    ref = 23.96
+    scale = _load_scale(ref, 60.0)
+    unit, quads = mesh.rectangle(1.0, 1.0, n, n)
+    xi, eta = unit[:, 0], unit[:, 1]
+    y_low, y_high = 44.0 * xi, 44.0 + 16.0 * xi
+    pts = np.column_stack([48.0 * xi, y_low + eta * (y_high - y_low), np.zeros(len(unit))])
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    ids = b.add_shell_mesh(pts, quads, material=ShellMaterial(1.0, 1.0 / 3.0, 1.0, 1.0))
+    b.fix(ids, ["z", "rx", "ry"])  # plane stress
+    b.fix(ids[xi == 0.0], ["x", "y"])
+    right = np.flatnonzero(np.isclose(xi, 1.0))
+    right = right[np.argsort(eta[right])]
+    for node, f in zip(ids[right], _edge_loads(n, scale), strict=True):
+        b.add_force(node, (0.0, f, 0.0))
+    v = solve_static(b.finalize(), load_steps=1).displacements[-1, :, 1] / scale
+    mid, corner = ids[right[n // 2]], ids[right[-1]]
+    return _result("Cook's membrane", f"{n}x{n}", v[mid], ref, corner=float(v[corner]))
+
+
+def macneal_cantilever(direction: str = "in-plane", nx: int = 6, ny: int = 1) -> dict:
+    """MacNeal-Harder straight cantilever (MacNeal & Harder 1985): length 6, width 0.2,
+    thickness 0.1, E = 1e7, nu = 0.3, clamped root (translations and the bending rotations rx,
+    ry; the drilling rotation free, see :func:`cook_membrane`), unit tip shear shared by the
+    tip nodes. Reference tip deflection: in-plane 0.1081, out-of-plane 0.4321 (beam theory with
+    shear deformation)."""
+    if direction not in ("in-plane", "out-of-plane"):
+        raise ValueError(f"direction must be 'in-plane' or 'out-of-plane', got {direction!r}")
+    axis, ref = (1, 0.1081) if direction == "in-plane" else (2, 0.4321)
+    scale = _load_scale(ref, 6.0)
+    pts, quads = mesh.rectangle(6.0, 0.2, nx, ny)
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    ids = b.add_shell_mesh(pts, quads, material=ShellMaterial(1e7, 0.3, 1.0, 0.1))
+    b.fix(ids[pts[:, 0] == 0.0], ["x", "y", "z", "rx", "ry"])
+    tip = ids[np.isclose(pts[:, 0], 6.0)]
+    load = np.zeros(3)
+    load[axis] = scale / len(tip)
+    b.add_force(tip, tuple(load))
+    res = solve_static(b.finalize(), load_steps=1)
+    w = res.displacements[-1, tip, axis].mean() / scale
+    return _result(f"MacNeal-Harder cantilever, {direction} shear", f"{nx}x{ny}", w, ref)
+
+
+def _cylinder_points(unit: np.ndarray, radius, length, phi0, phi1) -> np.ndarray:
+    """Map the unit square (xi along the axis x, eta around it) to the cylinder
+    ``y = R sin(phi), z = R cos(phi)``, phi from phi0 to phi1 [rad]."""
+    phi = phi0 + unit[:, 1] * (phi1 - phi0)
+    return np.column_stack([length * unit[:, 0], radius * np.sin(phi), radius * np.cos(phi)])
+
+
+def scordelis_lo_roof(n: int = 24) -> dict:
+    """Scordelis-Lo roof (MacNeal & Harder 1985): cylindrical panel R = 25, L = 50, +-40 deg,
+    t = 0.25, E = 4.32e8, nu = 0, self weight 90 per unit area, rigid diaphragms at both ends
+    (y = z = 0 and the rotation about the axis rx = 0), straight edges free, x held at the
+    mid-span crown (zero by symmetry) against axial rigid motion; the full roof on an
+    n x n mesh (n even). Reference: vertical deflection at the middle of a free edge 0.3024."""
+    if n % 2:
+        raise ValueError(f"scordelis_lo_roof: n must be even (a node at mid-span), got {n}")
+    ref, t = 0.3024, 0.25
+    scale = _load_scale(ref, 50.0)
+    phi = np.deg2rad(40.0)
+    unit, quads = mesh.rectangle(1.0, 1.0, n, n)
+    pts = _cylinder_points(unit, 25.0, 50.0, -phi, phi)
+    # self weight as gravity on the lumped mass: rho t g = 90 per unit area (times the scale)
+    b = ModelBuilder(gravity=(0.0, 0.0, -90.0 * scale / t))
+    ids = b.add_shell_mesh(pts, quads, material=ShellMaterial(4.32e8, 0.0, 1.0, t))
+    ends = np.isclose(unit[:, 0], 0.0) | np.isclose(unit[:, 0], 1.0)
+    b.fix(ids[ends], ["y", "z", "rx"])
+    # the diaphragms leave the axial rigid translation free: hold x at the mid-span crown, where
+    # it is zero by symmetry anyway
+    b.fix(ids[np.isclose(unit[:, 0], 0.5) & np.isclose(unit[:, 1], 0.5)], ["x"])
+    res = solve_static(b.finalize(), load_steps=1)
+    mid = ids[np.isclose(unit[:, 0], 0.5) & np.isclose(unit[:, 1], 1.0)]
+    return _result("Scordelis-Lo roof", f"{n}x{n} full", -res.displacements[-1, mid, 2].mean()
+                   / scale, ref)  # fmt: skip
+
+
+def pinched_cylinder(n: int = 16) -> dict:
+    """Pinched cylinder with rigid diaphragms (MacNeal & Harder 1985): R = 300, L = 600, t = 3,
+    E = 3e6, nu = 0.3, two opposite unit loads at mid-length. One octant on an n x n mesh
+    (x from the diaphragm to mid-length, phi from the loaded line to the plane z = 0) with
+    symmetry conditions (plane x = L/2: x, ry, rz; plane y = 0: y, rx, rz; plane z = 0: z, rx,
+    ry) and the diaphragm y = z = rx = 0; a quarter load. Reference: radial displacement under
+    the load 1.8248e-5."""
+    ref = 1.8248e-5
+    scale = _load_scale(ref, 600.0)
+    unit, quads = mesh.rectangle(1.0, 1.0, n, n)
+    pts = _cylinder_points(unit, 300.0, 300.0, 0.0, 0.5 * np.pi)
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    ids = b.add_shell_mesh(pts, quads, material=ShellMaterial(3e6, 0.3, 1.0, 3.0))
+    xi, eta = unit[:, 0], unit[:, 1]
+    b.fix(ids[np.isclose(xi, 0.0)], ["y", "z", "rx"])
+    b.fix(ids[np.isclose(xi, 1.0)], ["x", "ry", "rz"])
+    b.fix(ids[np.isclose(eta, 0.0)], ["y", "rx", "rz"])
+    b.fix(ids[np.isclose(eta, 1.0)], ["z", "rx", "ry"])
+    load = ids[np.isclose(xi, 1.0) & np.isclose(eta, 0.0)]
+    b.add_force(load, (0.0, 0.0, -0.25 * scale))
+    res = solve_static(b.finalize(), load_steps=1)
+    w = -res.displacements[-1, load, 2].mean() / scale
+    return _result("Pinched cylinder (octant)", f"{n}x{n} octant", w, ref)
+
+
+SHELL_BENCHMARK_MESHES: dict = {
+    "cook": (4, 8, 16),
+    "macneal": ((6, 1),),
+    "scordelis": (8, 16, 24),
+    "pinched": (4, 8, 16),
+}
+"""Meshes :func:`shell_benchmarks` runs by default (a few seconds in all)."""
+
+
+def shell_benchmarks(meshes: dict | None = None) -> list[dict]:
+    """The linear shell benchmarks on the meshes of ``meshes`` (default
+    :data:`SHELL_BENCHMARK_MESHES`; keys cook, macneal ((nx, ny) pairs), scordelis, pinched),
+    one result dict (case, mesh, value, reference, ratio, rel_err) per run."""
+    m = SHELL_BENCHMARK_MESHES if meshes is None else meshes
+    rows = [cook_membrane(n) for n in m.get("cook", ())]
+    for nx, ny in m.get("macneal", ()):
+        rows += [macneal_cantilever(d, nx, ny) for d in ("in-plane", "out-of-plane")]
+    rows += [scordelis_lo_roof(n) for n in m.get("scordelis", ())]
+    rows += [pinched_cylinder(n) for n in m.get("pinched", ())]
+    return rows
+
+
+def benchmark_table(rows: list[dict]) -> str:
+    """Markdown table of :func:`shell_benchmarks` rows."""
+    lines = [
+        "| case | mesh | result | reference | ratio | error |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['case']} | {r['mesh']} | {r['value']:.5g} | {r['reference']:.5g} "
+            f"| {r['ratio']:.4f} | {100.0 * r['rel_err']:+.2f} % |"
+        )
+    return "\n".join(lines)
+
+
 def run_all(reference_dir: str | Path = REFERENCE_DIR) -> dict:
     """All cases, summarised as max errors (JSON-ready); ``reference_dir`` holds the Sze 2004
     tables (default: the packaged copy)."""
@@ -167,4 +356,5 @@ def run_all(reference_dir: str | Path = REFERENCE_DIR) -> dict:
             "lambda": pl["lambda"].tolist(),
             "rel_err": pl["rel_err"].tolist(),
         },
+        "shell_benchmarks": shell_benchmarks(),
     }

@@ -1,4 +1,4 @@
-"""Co-rotational flat triangular shell: CST membrane + DKT plate + drilling penalty.
+"""Co-rotational flat triangular shell: OPT membrane with drilling freedoms + DKT plate.
 
 Formulation (element-independent co-rotational, Rankin & Brogan 1986; Felippa & Haugen 2005,
 CMAME 194:2285):
@@ -8,14 +8,21 @@ CMAME 194:2285):
   ``d_l = [u_i, theta_i]`` (18,): ``u_i = R0^T (x_i - x_c) - X_i`` and
   ``theta_i = log(R0^T R_i R0_ref)``, which stay small under large rigid motion.
 * Locally the element is linear and small-strain: ``E = 1/2 d_l^T K_l d_l`` with
-  - membrane: constant-strain triangle (CST);
+  - membrane: the ANDES "optimal" triangle with corner drilling rotations, OPT (Felippa 2003,
+    "A study of optimal membrane triangles with drilling freedoms", CMAME 192:2125; ANDES
+    template of Bergan & Felippa 1985 and Militello & Felippa 1991): a constant-strain basic
+    stiffness with Allman-type rotation-driven edge displacements (alpha_b = 3/2) plus a
+    higher-order stiffness on the deviatoric corner rotations with a linear assumed natural
+    strain (beta_0 = (1 - 4 nu^2)/2, beta_1..9 of OPT). It passes the patch test, keeps the
+    rigid in-plane rotation (u = -w y, v = w x, theta_z = w) strain free, and is exact in
+    in-plane bending of rectangular two-triangle pairs, so it does not lock in in-plane bending
+    as the constant-strain triangle does; the drilling rotation gets a physical stiffness;
   - bending: Discrete Kirchhoff Triangle (Batoz, Bathe & Ho 1980, IJNME 15:1771) — quadratic
     rotation fields with the Kirchhoff hypothesis imposed at corners and mid-sides, so there is no
     transverse shear and hence no shear locking at any thickness (tested to t/L = 1e-3);
-    flat facets carry no membrane-bending coupling, hence no membrane locking;
-  - drilling: a weak penalty on the local rotation about the normal minus the CST's in-plane
-    rotation (Hughes & Brezzi 1989 style), ``k = alpha * E t A`` with alpha = 1e-3; it only removes
-    the zero-stiffness drilling mode of a flat mesh.
+    flat facets carry no membrane-bending coupling, hence no membrane locking.
+  ``tests/test_shell_benchmarks.py`` and docs/shell-verification.md give the benchmarks
+  (Cook's membrane, MacNeal-Harder cantilever, Scordelis-Lo roof, pinched cylinder).
 * Internal force ``f = B^T K_l (d_l + beta * d_l')`` with ``B = d d_l / d(x, spin)``; the damping
   term is stiffness-proportional Rayleigh damping ``C = beta * K_cr`` where ``K_cr = B^T K_l B`` is
   the co-rotational material stiffness at the current configuration: rigid-body motion is not
@@ -37,7 +44,6 @@ from flexparcel.model.interfaces import ElementGroup
 
 __all__ = [
     "ShellGroup",
-    "DRILLING_ALPHA",
     "local_stiffness",
     "reference_frames",
     "element_forces",
@@ -45,7 +51,6 @@ __all__ = [
     "material_tangents",
 ]
 
-DRILLING_ALPHA = 1e-3
 _CS_STEP = 1e-30  # complex-step size: no subtractive cancellation, so any tiny h is exact
 
 
@@ -108,29 +113,113 @@ def _p2_gradients(xy: np.ndarray, l: np.ndarray) -> np.ndarray:
     return g
 
 
+# --------------------------------------------------------------------------- OPT membrane
+# ANDES "optimal" membrane triangle with corner drilling freedoms (OPT): C. A. Felippa, "A study
+# of optimal membrane triangles with drilling freedoms", CMAME 192 (2003) 2125-2168, built on the
+# assumed natural deviatoric strain (ANDES) template of Bergan & Felippa (1985, CMAME 50:25) and
+# Militello & Felippa (1991, CMAME 93:217). Its parameters are the set that
+# Felippa (2003) names OPT:
+OPT_ALPHA_B = 1.5
+"""alpha_b of the basic stiffness (the Allman-type quadratic edge displacement weight)."""
+OPT_BETAS = np.array([[1.0, 2.0, 1.0], [0.0, 1.0, -1.0], [-1.0, -1.0, -2.0]])
+"""beta_1..beta_9 of the higher-order stiffness, as the 3x3 block ``[[b1 b2 b3] [b4 b5 b6]
+[b7 b8 b9]]`` (rows: sides 1-2, 2-3, 3-1; columns: corners 1, 2, 3) of corner 1's matrix Q_1."""
+
+
+def opt_beta0(poisson_ratio: float) -> float:
+    """Higher-order scaling beta_0 of OPT for an isotropic material (Felippa 2003):
+    ``(1 - 4 nu^2) / 2``, floored at 0.01 so the element keeps its rank near nu = 1/2."""
+    return max(0.5 * (1.0 - 4.0 * poisson_ratio**2), 0.01)
+
+
+def _opt_membrane(xy: np.ndarray, dmat: np.ndarray, thickness: float, beta0: float) -> np.ndarray:
+    """OPT membrane stiffness (9, 9) over ``[u, v, theta_z]`` per corner (Felippa 2003).
+
+    ``xy`` (3, 2) counter-clockwise corner coordinates [m], ``dmat`` the plane-stress modulus
+    matrix (3, 3) [Pa], stresses/strains ordered ``[xx, yy, xy (engineering)]``.
+
+    ``K = K_b + K_h``:
+
+    * basic ``K_b = V B_b^T D B_b`` (V = A t): ``B_b`` is the mean strain of the field that is
+      linear in the corners' translations plus an Allman-type quadratic normal displacement of
+      each side driven by the difference of its corner rotations, weighted by ``alpha_b``; it is
+      constant strain, so the
+      element passes the patch test and a rigid rotation (equal theta at the corners) is strain
+      free;
+    * higher order ``K_h = beta_0 T^T K_theta T``: ``T`` (3, 9) gives the deviatoric corner
+      rotations ``theta_i - theta_0`` (theta_0 the mean in-plane rotation ``(v,x - u,y) / 2``
+      of the linear field); the assumed strain is linear over the triangle, ``3/2 sum_i
+      zeta_i T_e Q_i`` with ``Q_i`` the natural (side-extension) strains at corner i, ``T_e``
+      their map to Cartesian strains; integrated exactly by the mid-side rule. It vanishes for
+      every constant-strain field and for rigid motion, so it adds no spurious stiffness there.
+    """
+    x, y = xy[:, 0], xy[:, 1]
+    nxt = np.array([1, 2, 0])  # corner i -> j (next), k (previous): counter-clockwise cycle
+    prv = np.array([2, 0, 1])
+    # b_i = y_j - y_k, c_i = x_k - x_j: twice the area times the gradient of the linear function
+    b = y[nxt] - y[prv]
+    c = x[prv] - x[nxt]
+    two_a = b[0] * c[1] - b[1] * c[0]
+    area = 0.5 * two_a
+    vol = area * thickness
+    ab = OPT_ALPHA_B
+    # --- basic part: B_b (3, 9) = L^T / V with Felippa's (2003) force-lumping matrix L
+    bb = np.zeros((3, 9))
+    for i in range(3):
+        j, k = nxt[i], prv[i]
+        xki, xij = x[k] - x[i], x[i] - x[j]
+        yik, yji = y[i] - y[k], y[j] - y[i]
+        bb[0, 3 * i] = b[i]
+        bb[1, 3 * i + 1] = c[i]
+        bb[2, 3 * i] = c[i]
+        bb[2, 3 * i + 1] = b[i]
+        bb[0, 3 * i + 2] = ab / 6.0 * b[i] * (yik - yji)
+        bb[1, 3 * i + 2] = ab / 6.0 * c[i] * (xki - xij)
+        bb[2, 3 * i + 2] = ab / 3.0 * (xki * yik - xij * yji)
+    bb /= two_a
+    k_basic = vol * bb.T @ dmat @ bb
+    # --- higher-order part
+    # deviatoric corner rotations: theta_i - theta_0, theta_0 = sum_i (b_i v_i - c_i u_i) / (4A)
+    t_rot = np.zeros((3, 9))
+    for i in range(3):
+        t_rot[:, 3 * i] = c[i] / (2.0 * two_a)
+        t_rot[:, 3 * i + 1] = -b[i] / (2.0 * two_a)
+        t_rot[i, 3 * i + 2] = 1.0
+    # sides 1-2, 2-3, 3-1: direction cosines; side-extension strain = n(side) . [exx eyy gxy]
+    starts, ends = np.array([0, 1, 2]), np.array([1, 2, 0])
+    d = xy[ends] - xy[starts]
+    len2 = np.einsum("ij,ij->i", d, d)
+    to_natural = np.column_stack([d[:, 0] ** 2, d[:, 1] ** 2, d[:, 0] * d[:, 1]]) / len2[:, None]
+    t_e = np.linalg.inv(to_natural)  # natural -> Cartesian strains
+    d_nat = t_e.T @ dmat @ t_e
+    # Q_1 (natural strains at corner 1 per deviatoric rotation), Q_2 and Q_3 by cyclic symmetry
+    q = [(two_a / 3.0) * np.roll(OPT_BETAS, (n, n), axis=(0, 1)) / len2[:, None] for n in range(3)]
+    k_theta = np.zeros((3, 3))
+    for qm in (0.5 * (q[0] + q[1]), 0.5 * (q[1] + q[2]), 0.5 * (q[2] + q[0])):  # mid-sides
+        k_theta += qm.T @ d_nat @ qm
+    k_theta *= 0.75 * beta0 * vol  # (3/2)^2 from the strain scale, 1/3 from the mid-side rule
+    return k_basic + t_rot.T @ k_theta @ t_rot
+
+
 def local_stiffness(
     xy: np.ndarray, youngs_modulus: float, poisson_ratio: float, thickness: float
 ) -> np.ndarray:
-    """Local linear stiffness (18, 18) of one triangle with local corner coordinates xy (3, 2) [m].
+    """Local linear stiffness (18, 18) of one triangle with local corner coordinates xy (3, 2) [m]:
+    OPT membrane with drilling freedoms (Felippa 2003) + DKT plate bending (Batoz et al. 1980).
 
-    Local DOFs per corner: ``[u, v, w, theta_x, theta_y, theta_z]``.
+    Local DOFs per corner: ``[u, v, w, theta_x, theta_y, theta_z]``; membrane and bending are
+    uncoupled (flat facet).
     """
     e, nu, h = youngs_modulus, poisson_ratio, thickness
+    iso = np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, 0.5 * (1.0 - nu)]]) / (1.0 - nu**2)
     x, y = xy[:, 0], xy[:, 1]
     b = np.array([y[1] - y[2], y[2] - y[0], y[0] - y[1]])
     c = np.array([x[2] - x[1], x[0] - x[2], x[1] - x[0]])
-    two_a = b[0] * c[1] - b[1] * c[0]
-    area = 0.5 * two_a
-    iso = np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, 0.5 * (1.0 - nu)]]) / (1.0 - nu**2)
+    area = 0.5 * (b[0] * c[1] - b[1] * c[0])
     k = np.zeros((18, 18))
-    # membrane (CST): eps = [u,x  v,y  u,y+v,x]
-    bm = np.zeros((3, 18))
-    for i in range(3):
-        bm[0, 6 * i] = b[i] / two_a
-        bm[1, 6 * i + 1] = c[i] / two_a
-        bm[2, 6 * i] = c[i] / two_a
-        bm[2, 6 * i + 1] = b[i] / two_a
-    k += area * e * h * bm.T @ iso @ bm
+    # membrane with drilling (OPT) over [u, v, theta_z] of each corner
+    memb = np.array([[6 * i, 6 * i + 1, 6 * i + 5] for i in range(3)]).ravel()
+    k[np.ix_(memb, memb)] += _opt_membrane(xy, e * iso, h, opt_beta0(nu))
     # bending (DKT): kappa = [bx,x  by,y  bx,y+by,x], beta from the 9 plate DOFs
     tmap = _dkt_beta_map(xy)
     plate = np.array([[6 * i + 2, 6 * i + 3, 6 * i + 4] for i in range(3)]).ravel()
@@ -147,16 +236,6 @@ def local_stiffness(
         bk = bb @ tmap
         kb += (area / 3.0) * bk.T @ db @ bk
     k[np.ix_(plate, plate)] += kb
-    # drilling penalty on theta_z,i - omega, omega = (v,x - u,y)/2 of the CST
-    om = np.zeros(18)
-    for i in range(3):
-        om[6 * i + 1] = 0.5 * b[i] / two_a
-        om[6 * i] = -0.5 * c[i] / two_a
-    kd = DRILLING_ALPHA * e * h * area
-    for i in range(3):
-        r = -om.copy()
-        r[6 * i + 5] += 1.0
-        k += kd * np.outer(r, r)
     return k
 
 
@@ -409,7 +488,7 @@ def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, 
 
 # --------------------------------------------------------------------------- element group
 class ShellGroup(ElementGroup):
-    """Flat shell triangles (CST membrane + DKT bending + drilling penalty, co-rotational),
+    """Flat shell triangles (OPT membrane with drilling + DKT bending, co-rotational),
     quads split into four half-weight triangles; 6 DOFs per node.
 
     Build it with :meth:`from_mesh`; groups of several meshes are joined by
