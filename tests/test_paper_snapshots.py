@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from flexparcel.builder import ModelBuilder
-from flexparcel.cli.snapshots import check_snapshot_matches
 from flexparcel.consignments.assembly import content_outside_packaging
 from flexparcel.consignments.build import (
     ConsignmentBuild,
@@ -16,7 +15,7 @@ from flexparcel.consignments.build import (
     _hex_block,
     add_consignment,
 )
-from flexparcel.consignments.snapshot import load_snapshot
+from flexparcel.consignments.snapshot import check_snapshot_matches, load_snapshot
 from flexparcel.scenarios.conveyor_scene import build_conveyor_model, default_layout
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "paper-snapshots-25mm"

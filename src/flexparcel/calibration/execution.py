@@ -10,7 +10,12 @@ to ``done`` (or ``failed`` after its retries):
 * a failed run (an exception in the simulator, a non-finite or missing response, a crashed worker
   process) is recorded with its error text and resubmitted until it has had ``1 + retries``
   attempts; after that it stays ``failed`` (visible in the store and the report) until a campaign
-  with ``retry_failed=True`` grants it a fresh budget.
+  with ``retry_failed=True`` grants it a fresh budget;
+* a worker process that dies breaks the pool and every run in flight with it: when several were
+  in flight none is charged (the culprit is unknown); they run again one at a time, where a
+  crash is the run's own and is charged;
+* worker processes end with the campaign, also when it is killed with SIGKILL
+  (:func:`flexparcel.io.lifetime.die_with_parent`).
 
 Executors: ``concurrent.futures.ProcessPoolExecutor`` (``workers`` processes, the default),
 ``dask.distributed`` (``scheduler`` = the address of a running scheduler; workers need flexparcel
@@ -31,6 +36,7 @@ from dataclasses import dataclass, field
 
 from flexparcel.calibration.simulators import get_simulator
 from flexparcel.calibration.store import StudyStore, worker_label
+from flexparcel.io.lifetime import die_with_parent
 
 __all__ = ["CampaignReport", "execute_run", "run_campaign"]
 
@@ -56,6 +62,8 @@ class CampaignReport:
 
 
 def _init_worker(threads: int) -> None:
+    # a campaign killed with SIGKILL takes its workers along (no run goes on unobserved)
+    die_with_parent()
     # Two BLAS/OpenMP pools on few cores slow each other down; a worker is one run, one thread.
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
         os.environ.setdefault(var, str(threads))
@@ -247,6 +255,8 @@ def run_campaign(
         report.executor = label
         bar = _progress(progress, total=len(keys), initial=report.already_done, desc=desc)
         in_flight: dict = {}
+        suspects: set[str] = set()  # runs in flight when a worker died
+        crashed_with: set[str] = set()
         pool_broken = False
         # Worker processes get their BLAS pools limited; in-process runs keep the caller's.
         run_threads = None if label == "serial" else threads
@@ -260,8 +270,10 @@ def run_campaign(
                         workers, scheduler, start_method, threads
                     )
                     pool_broken = False
-                while not pool_broken and queue and len(in_flight) < max_in_flight:
-                    key = queue.popleft()
+                # while runs are under suspicion of having crashed a worker, one at a time
+                limit = 1 if suspects else max_in_flight
+                while not pool_broken and queue and len(in_flight) < limit:
+                    key = _next_run(queue, suspects)
                     store.mark_running(key)
                     r = rows[key]
                     try:
@@ -285,9 +297,22 @@ def run_campaign(
                 if not in_flight:
                     continue
                 for fut in _wait_any(list(in_flight)):
-                    key = in_flight.pop(fut)
                     outcome = _outcome(fut)
-                    pool_broken |= outcome.pop("broken", False)
+                    broken = outcome.pop("broken", False)
+                    if broken and not pool_broken:  # the runs in flight when the pool broke
+                        crashed_with = set(in_flight.values())
+                    pool_broken |= broken
+                    key = in_flight.pop(fut)
+                    if broken and len(crashed_with) > 1:
+                        # a worker died while several runs were in flight: which one killed
+                        # it is unknown, so none is charged; each runs again alone, where a
+                        # crash is its own
+                        store.mark_pending(key)
+                        report.attempts -= 1
+                        suspects.add(key)
+                        queue.appendleft(key)
+                        continue
+                    suspects.discard(key)
                     if outcome["ok"]:
                         store.mark_done(
                             key,
@@ -323,6 +348,15 @@ def run_campaign(
         store.release_lock()
     report.wall_s = time.perf_counter() - t_start
     return report
+
+
+def _next_run(queue: deque, suspects: set) -> str:
+    """The next run to start: a suspect first (see run_campaign), else the queue's head."""
+    for i, key in enumerate(queue):
+        if key in suspects:
+            del queue[i]
+            return key
+    return queue.popleft()
 
 
 def _wait_any(futures: list):

@@ -78,6 +78,18 @@ def register_simulator(
     return deco
 
 
+def _register_callable(name: str, obj) -> None:
+    """Register a plain callable under ``name``; its ``simulator_version`` and
+    ``simulator_responses`` attributes, where set, give the version and the responses."""
+    if not callable(obj):
+        raise ValueError(f"simulator {name!r}: {obj!r} is not callable")
+    register_simulator(
+        name,
+        version=str(getattr(obj, "simulator_version", "1")),
+        responses=tuple(getattr(obj, "simulator_responses", ())),
+    )(obj)
+
+
 def _load_entry_points(name: str) -> None:
     from importlib.metadata import entry_points
 
@@ -86,7 +98,31 @@ def _load_entry_points(name: str) -> None:
             continue
         obj = ep.load()  # importing a module registers its simulators
         if callable(obj) and name not in _REGISTRY:
-            register_simulator(name)(obj)
+            _register_callable(name, obj)
+
+
+def _load_reference(name: str) -> None:
+    """Register ``module:function`` or ``/path/FILE.py:function`` under that very name (a
+    study may name its simulator so, without a wrapper module on PYTHONPATH). A file is the
+    user's own Python module, imported like one."""
+    target, _, attr = name.rpartition(":")
+    try:
+        if target.endswith(".py"):
+            from importlib import util as import_util
+
+            digest = hashlib.sha256(target.encode()).hexdigest()[:12]
+            spec = import_util.spec_from_file_location(f"_flexparcel_study_{digest}", target)
+            if spec is None or not os.path.isfile(target):
+                raise ImportError(f"no file {target}")
+            module = import_util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+        else:
+            module = importlib.import_module(target)
+    except ImportError as exc:
+        raise ValueError(f"simulator {name!r}: cannot import {target!r}: {exc}") from exc
+    if not hasattr(module, attr):
+        raise ValueError(f"simulator {name!r}: {target!r} has no {attr!r}")
+    _register_callable(name, getattr(module, attr))
 
 
 def get_simulator(name: str, modules: Iterable[str] = ()) -> SimulatorInfo:
@@ -100,13 +136,17 @@ def get_simulator(name: str, modules: Iterable[str] = ()) -> SimulatorInfo:
             raise ValueError(f"simulator module {module!r} cannot be imported: {exc}") from exc
         if name in _REGISTRY:
             return _REGISTRY[name]
+    if ":" in name:
+        _load_reference(name)
+        return _REGISTRY[name]
     _load_entry_points(name)
     if name in _REGISTRY:
         return _REGISTRY[name]
     raise ValueError(
         f"unknown simulator {name!r}; registered: {', '.join(sorted(_REGISTRY)) or 'none'} "
         "(a simulator registers itself with flexparcel.calibration.register_simulator when its "
-        "module is imported; list that module in the study's simulator_modules)"
+        "module is imported; list that module in the study's simulator_modules, or name it "
+        "as 'module:function' or 'FILE.py:function')"
     )
 
 

@@ -358,6 +358,15 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
     )
 
 
+def _simulator_reference(path: Path, name: str) -> str:
+    """A study's ``simulator``: a registered name, ``module:function``, or ``FILE.py:function``
+    with FILE relative to the study file (made absolute here, so that every worker finds it)."""
+    target, sep, func = name.rpartition(":")
+    if sep and target.endswith(".py") and not Path(target).is_absolute():
+        return f"{(path.parent / target).resolve()}:{func}"
+    return name
+
+
 def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> ExperimentConfig:
     t = f"experiments.{ename}"
     f = _Fields(
@@ -375,7 +384,7 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
             "description",
         ),
     )
-    simulator = f.get("simulator", "str", required=True)
+    simulator = _simulator_reference(path, f.get("simulator", "str", required=True))
     setup = dict(f.get("setup", "table", {}))
     pnames = f.str_list("parameters", space.names)
     for p in pnames:

@@ -161,9 +161,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import sys
 
-    from flexparcel.cli.snapshots import assemble_job, check_snapshot_matches
+    from flexparcel.cli.snapshots import assemble_job
     from flexparcel.consignments.assembly import AssemblyError
-    from flexparcel.consignments.snapshot import load_snapshot
+    from flexparcel.consignments.snapshot import check_snapshot_matches, load_snapshot
     from flexparcel.consignments.userfile import resolve_consignment
     from flexparcel.integrate.errors import ConvergenceError
     from flexparcel.scenarios.base import T_END

@@ -10,13 +10,13 @@ Files of an assembly (in ``out``): ``snapshot.npz``, ``assembly.json``, ``assemb
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from flexparcel.consignments.build import Consignment, ConsignmentBuild, add_consignment
-from flexparcel.consignments.snapshot import Snapshot
+from flexparcel.consignments.snapshot import Snapshot, check_snapshot_matches
 from flexparcel.scenarios.base import write_json
 
 __all__ = [
@@ -48,32 +48,6 @@ class JobFiles:
     def as_dict(self) -> dict[str, str]:
         """Non-empty entries as strings (for JSON and printing)."""
         return {k: str(v) for k, v in self.__dict__.items() if v is not None and k != "directory"}
-
-
-def check_snapshot_matches(
-    snapshot: Snapshot, build: ConsignmentBuild | None, element_size: float | None
-) -> None:
-    """Raise ``ValueError`` unless ``snapshot`` was assembled from ``build`` (same spec and
-    material, where given) with ``element_size`` [m] (where given)."""
-    sb = snapshot.build
-    if build is not None:
-        if sb.spec != build.spec:
-            raise ValueError(
-                f"the snapshot holds consignment {sb.spec.id!r} ({sb.spec.packaging_material}, "
-                f"{sb.spec.length_mm:g} x {sb.spec.width_mm:g} mm), not the given "
-                f"{build.spec.id!r}; leave out --consignment or assemble it again"
-            )
-        # the provenance text may differ (a renamed file); the numbers must not
-        if replace(sb.material, source="") != replace(build.material, source=""):
-            raise ValueError(
-                f"the snapshot of {sb.spec.id!r} was assembled with another packaging "
-                "material; leave out --consignment or assemble it again"
-            )
-    if element_size is not None and not np.isclose(sb.element_size, element_size):
-        raise ValueError(
-            f"the snapshot was assembled with {sb.element_size * 1e3:g} mm elements, not "
-            f"{element_size * 1e3:g} mm; leave out --element-size or assemble it again"
-        )
 
 
 def _consignment_model(build: ConsignmentBuild):

@@ -10,7 +10,7 @@ follows exactly from the settled state and the stress-free reference mesh. Store
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +20,14 @@ from flexparcel.consignments.build import ConsignmentBuild
 from flexparcel.io.atomic import write_atomic
 from flexparcel.model.model import Model, State
 
-__all__ = ["SNAPSHOT_FORMAT", "Snapshot", "save_snapshot", "load_snapshot", "place_snapshot"]
+__all__ = [
+    "SNAPSHOT_FORMAT",
+    "Snapshot",
+    "save_snapshot",
+    "load_snapshot",
+    "place_snapshot",
+    "check_snapshot_matches",
+]
 
 SNAPSHOT_FORMAT = 1
 
@@ -147,3 +154,29 @@ def place_snapshot(
     if lowest_z is not None:
         s.positions[sl, 2] += lowest_z - s.positions[sl, 2].min()
     return s
+
+
+def check_snapshot_matches(
+    snapshot: Snapshot, build: ConsignmentBuild | None, element_size: float | None
+) -> None:
+    """Raise ``ValueError`` unless ``snapshot`` was assembled from ``build`` (same spec and
+    material, where given) with ``element_size`` [m] (where given)."""
+    sb = snapshot.build
+    if build is not None:
+        if sb.spec != build.spec:
+            raise ValueError(
+                f"the snapshot holds consignment {sb.spec.id!r} ({sb.spec.packaging_material}, "
+                f"{sb.spec.length_mm:g} x {sb.spec.width_mm:g} mm), not the given "
+                f"{build.spec.id!r}; leave out --consignment or assemble it again"
+            )
+        # the provenance text may differ (a renamed file); the numbers must not
+        if replace(sb.material, source="") != replace(build.material, source=""):
+            raise ValueError(
+                f"the snapshot of {sb.spec.id!r} was assembled with another packaging "
+                "material; leave out --consignment or assemble it again"
+            )
+    if element_size is not None and not np.isclose(sb.element_size, element_size):
+        raise ValueError(
+            f"the snapshot was assembled with {sb.element_size * 1e3:g} mm elements, not "
+            f"{element_size * 1e3:g} mm; leave out --element-size or assemble it again"
+        )

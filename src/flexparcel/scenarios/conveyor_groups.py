@@ -326,6 +326,9 @@ def _serve(conn, setup: dict, threads: int) -> None:
     """Worker process: answer commands until told to stop; errors go back as text."""
     import numba
 
+    from flexparcel.io.lifetime import die_with_parent
+
+    die_with_parent()  # a coordinator killed with SIGKILL takes its workers along
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     worker = _Worker(setup)
     while True:

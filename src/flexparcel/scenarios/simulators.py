@@ -1,0 +1,166 @@
+"""The physical tests as calibration simulators: ``swing``, ``drop-vertical``,
+``drop-horizontal`` and ``conveyor``.
+
+Each is a plain function ``simulator(params, **setup) -> {response: value}`` registered
+through the entry-point group ``flexparcel.simulators`` (``pyproject.toml``), so a study names
+it (``simulator = "swing"``) and :mod:`flexparcel.calibration` finds it without importing any
+finite-element code itself. Each runs its scenario (:mod:`flexparcel.scenarios.registry`):
+
+* ``params``: the scenario's parameters in the paper's units, by the names of Table 3
+  (``youngs_modulus`` [MPa], ``damping_ratio`` [s], ``contact_stiffness`` [N/mm],
+  ``contact_damping`` [Ns/mm], ...; see ``flexparcel run SCENARIO --help`` or
+  ``get_scenario(name).parameters``); a name the scenario does not have is refused by name.
+* ``setup`` (the study's ``[experiments.X.setup]`` table): ``consignment`` (a preset: KPBW,
+  PB, KP, BW, or a consignment TOML file), ``element_size_mm`` (default: the consignment's),
+  ``snapshot`` (a snapshot ``.npz`` to start from; default: the cached assembly in
+  ``snapshot_dir``, assembled on first use), ``snapshot_dir`` (default ``snapshots``),
+  ``t_end_s`` (simulated time; default: the scenario's). Relative paths are taken from the
+  working directory of ``flexparcel calibrate``.
+* returns the scenario's responses in mm (``first_swing_mm``, ``second_swing_mm``;
+  ``rebound_mm``; for the conveyor per consignment exit times and positions). A response the
+  run did not reach fails the run with the scenario's reason: a calibration must not fit a
+  number that was not measured. The study store records each run's wall time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+__all__ = ["swing", "drop_vertical", "drop_horizontal", "conveyor", "scenario_snapshot"]
+
+
+def scenario_snapshot(
+    consignment: str,
+    element_size_mm: float | None = None,
+    snapshot: str | None = None,
+    snapshot_dir: str = "snapshots",
+):
+    """The settled snapshot a test starts from: ``snapshot`` if given (checked against the
+    consignment and element size), else ``snapshot_dir/KEY_SIZEmm.npz``, assembled and written
+    there (atomically) on first use."""
+    from flexparcel.consignments.assembly import assemble
+    from flexparcel.consignments.snapshot import (
+        check_snapshot_matches,
+        load_snapshot,
+        save_snapshot,
+    )
+    from flexparcel.consignments.userfile import resolve_consignment
+
+    size = None if element_size_mm is None else float(element_size_mm) * 1e-3
+    build = resolve_consignment(consignment, size)
+    if snapshot is not None:
+        snap = load_snapshot(snapshot)
+        check_snapshot_matches(snap, build, size)
+        return snap
+    key = Path(str(consignment)).stem.replace("/", "").upper()
+    path = Path(snapshot_dir) / f"{key}_{build.element_size * 1e3:g}mm.npz"
+    if path.is_file():
+        snap = load_snapshot(path)
+        check_snapshot_matches(snap, build, build.element_size)
+        return snap
+    snap = assemble(build)
+    save_snapshot(snap, path)  # atomic: two workers assembling at once both write whole files
+    return snap
+
+
+_SETUP = {"consignment", "element_size_mm", "snapshot", "snapshot_dir", "t_end_s"}
+_CONVEYOR_SETUP = {"consignments", "element_size_mm", "snapshot_dir", "t_end_s", "workers"}
+
+
+def _check_setup(name: str, setup: Mapping[str, object], allowed: set[str]) -> None:
+    unknown = sorted(set(setup) - allowed)
+    if unknown:
+        raise ValueError(
+            f"{name}: unknown setup option(s) {', '.join(unknown)}; allowed: {sorted(allowed)}"
+        )
+
+
+def _check_parameters(name: str, scenario, params: Mapping[str, float]) -> None:
+    known = {p.name for p in scenario.parameters}
+    bad = sorted(set(params) - known)
+    if bad:
+        raise ValueError(
+            f"{name}: unknown parameter(s) {', '.join(bad)}; this simulator takes "
+            f"{', '.join(sorted(known))} (paper units)"
+        )
+
+
+def _run(name: str, params: Mapping[str, float], setup: Mapping[str, object]) -> dict:
+    from flexparcel.scenarios.registry import get_scenario
+
+    _check_setup(name, setup, _SETUP)
+    if "consignment" not in setup and "snapshot" not in setup:
+        raise ValueError(f"{name}: the setup needs 'consignment' (a preset or a TOML file)")
+    scenario = get_scenario(name)
+    _check_parameters(name, scenario, params)
+    scenario.resolve(dict(params))  # values against their ranges, before any assembly
+    snap = scenario_snapshot(
+        str(setup.get("consignment", "")) or _consignment_of(setup["snapshot"]),
+        setup.get("element_size_mm"),
+        setup.get("snapshot"),
+        str(setup.get("snapshot_dir", "snapshots")),
+    )
+    result = scenario.run(snap, dict(params), t_end=setup.get("t_end_s"))
+    out = {}
+    for rname, r in scenario.responses(result).items():
+        if not r.reached:
+            raise ValueError(f"{name}: {rname} not reached: {r.note}")
+        out[rname] = float(r.value)
+    return out
+
+
+def _consignment_of(snapshot: object) -> str:
+    from flexparcel.consignments.snapshot import load_snapshot
+
+    return load_snapshot(str(snapshot)).build.spec.id
+
+
+def swing(params: Mapping[str, float], **setup: object) -> dict[str, float]:
+    """The paper's swing test: first and second swing [mm]."""
+    return _run("swing", params, setup)
+
+
+def drop_vertical(params: Mapping[str, float], **setup: object) -> dict[str, float]:
+    """The paper's vertical drop (standing on its edge, 200 mm): rebound [mm]."""
+    return _run("drop-vertical", params, setup)
+
+
+def drop_horizontal(params: Mapping[str, float], **setup: object) -> dict[str, float]:
+    """The paper's horizontal drop (lying flat, 200 mm): rebound [mm]."""
+    return _run("drop-horizontal", params, setup)
+
+
+def conveyor(params: Mapping[str, float], **setup: object) -> dict[str, float]:
+    """The conveyor scene (``consignments``: a list of presets or TOML files, default the
+    paper's four; ``workers``: as for ``flexparcel run conveyor``): the scalar responses per
+    consignment that the run reached. A consignment that never leaves the belt has no exit
+    response (that is the outcome, not a failure); a study naming it as a target gets the
+    run reported as missing that response."""
+    from flexparcel.scenarios.conveyor_scene import PAPER_CONSIGNMENTS
+    from flexparcel.scenarios.registry import get_scenario
+
+    _check_setup("conveyor", setup, _CONVEYOR_SETUP)
+    scenario = get_scenario("conveyor", workers=int(setup.get("workers", 2)))
+    _check_parameters("conveyor", scenario, params)
+    scenario.resolve(dict(params))
+    names = [str(n) for n in setup.get("consignments", PAPER_CONSIGNMENTS)]
+    snaps = {
+        Path(n).stem.replace("/", "").upper(): scenario_snapshot(
+            n, setup.get("element_size_mm"), None, str(setup.get("snapshot_dir", "snapshots"))
+        )
+        for n in names
+    }
+    result = scenario.run(snaps, dict(params), t_end=setup.get("t_end_s"))
+    return {k: float(r.value) for k, r in scenario.responses(result).items() if r.reached}
+
+
+# the study store hashes runs with the simulator's version: bump it when results change
+for _f, _responses in (
+    (swing, ("first_swing_mm", "second_swing_mm")),
+    (drop_vertical, ("rebound_mm",)),
+    (drop_horizontal, ("rebound_mm",)),
+    (conveyor, ()),
+):
+    _f.simulator_version = "1"
+    _f.simulator_responses = _responses

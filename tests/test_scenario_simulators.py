@@ -1,0 +1,66 @@
+"""The physical tests as calibration simulators (flexparcel.scenarios.simulators): found by
+name through the entry points without the calibration layer loading FE code, refusing bad
+input by name, and failing a run whose response was not reached instead of returning 0."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from flexparcel.calibration.simulators import get_simulator
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "consignment_small.toml"
+
+
+def test_the_four_tests_are_registered_through_entry_points_without_fe_imports():
+    code = (
+        "import sys\n"
+        "from flexparcel.calibration.simulators import get_simulator\n"
+        "infos = [get_simulator(n) for n in ('swing', 'drop-vertical', 'drop-horizontal',"
+        " 'conveyor')]\n"
+        "assert infos[0].responses == ('first_swing_mm', 'second_swing_mm')\n"
+        "assert infos[1].responses == ('rebound_mm',)\n"
+        "assert 'numba' not in sys.modules and 'flexparcel.integrate' not in sys.modules\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize(
+    ("params", "setup", "message"),
+    [
+        ({"young": 900.0}, {"consignment": "KPBW"}, "unknown parameter.*young.*youngs_modulus"),
+        ({}, {"consignment": "KPBW", "mesh": 10}, "unknown setup option.*mesh"),
+        ({}, {}, "needs 'consignment'"),
+        ({}, {"consignment": "XYZ"}, "unknown consignment 'XYZ'"),
+        ({"youngs_modulus": -5.0}, {"consignment": "KPBW", "snapshot_dir": "nowhere"}, "> 0"),
+    ],
+)
+def test_bad_input_names_the_field(params, setup, message, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    if "snapshot_dir" in setup:  # a parameter out of range is refused before any assembly
+        setup = {**setup, "snapshot": str(tmp_path / "none.npz")}
+    with pytest.raises((ValueError, FileNotFoundError), match=message):
+        get_simulator("swing").func(params, **setup)
+
+
+def test_a_study_may_name_a_function_in_a_file_or_module(tmp_path):
+    from flexparcel.calibration.study import _simulator_reference
+
+    (tmp_path / "mysim.py").write_text(
+        "def run(params, **setup):\n    return {'y': 2.0 * params['x']}\n"
+    )
+    name = _simulator_reference(tmp_path / "study.toml", "mysim.py:run")
+    assert name == f"{tmp_path / 'mysim.py'}:run"
+    assert get_simulator(name).func({"x": 3.0}) == {"y": 6.0}
+    assert get_simulator("json:dumps").func([1]) == "[1]"
+    with pytest.raises(ValueError, match="has no 'nothing'"):
+        get_simulator("json:nothing")
+
+
+def test_a_response_not_reached_fails_the_run_with_its_reason(snapshot_dir):
+    # 20 ms after release the free end cannot have swung past the clamp edge: the first swing
+    # is not reached, and a calibration must not fit 0 mm for it
+    snap = snapshot_dir / "consignment_small" / "snapshot.npz"
+    with pytest.raises(ValueError, match="first_swing_mm not reached"):
+        get_simulator("swing").func({}, consignment=str(EXAMPLE), snapshot=str(snap), t_end_s=0.02)
