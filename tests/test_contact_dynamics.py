@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import flexparcel as fp
-from flexparcel.contact.law import ContactLaw
+from flexparcel.contact.law import REFERENCE_AREA, ContactLaw
 from flexparcel.contact.planes import plane_contact_forces
 from flexparcel.elements.rotations import rotation_exp
 from flexparcel.model.rigid import RoundedBox
@@ -19,18 +19,21 @@ def _box_on_plane(law, *, gravity, z0, surface_velocity=(0.0, 0.0, 0.0), mass=0.
     return b.finalize(), node
 
 
-def _linear_law(mu_s, mu_d, **extra):
+def _linear_law(mu_s, mu_d, stick_stiffness=None):
     """Linear spring 1e5 N/m per corner with constant damping 20 N s/m (zeta ~ 0.2 per corner;
     resting penetrations are microns, where the STEP option would give almost no damping and
-    the box would chatter) and friction mu_s / mu_d."""
-    return ContactLaw(
+    the box would chatter) and friction mu_s / mu_d. The law is per unit area; a box corner
+    carries REFERENCE_AREA (add_contact's default for a rigid body), so these per-point values
+    (and k_t [N/m]) are given per point of that area."""
+    return ContactLaw.from_point_values(
+        REFERENCE_AREA,
         stiffness=1e5,
+        stick_stiffness=stick_stiffness,
         damping=20.0,
         damping_option="indentation",
         indentation_exponent=0.0,
         mu_static=mu_s,
         mu_dynamic=mu_d,
-        **extra,
     )
 
 
@@ -45,7 +48,8 @@ def test_impact_restitution_matches_linear_spring_dashpot(zeta):
     # error tolerance 1e-8 m it is measured 0.25-0.5 %; allowed 1 %.
     m, c = 0.1, 1e5
     d = 2 * zeta * np.sqrt(c * m / 4)
-    law = ContactLaw(
+    law = ContactLaw.from_point_values(  # c, d per corner (a corner carries REFERENCE_AREA)
+        REFERENCE_AREA,
         stiffness=c,
         damping=d,
         damping_option="indentation",
@@ -126,6 +130,7 @@ def test_contact_point_tangents_match_finite_differences():
         np.array([0]),
         np.array([0]),
         np.ones(1),
+        np.ones(1),  # area 1 m^2: the per-area law acts as this point's law
         np.zeros((1, 3)),
         np.array([[0.0, 0.0, 1.0]]),
         np.array([[0.05, 0.0, 0.0]]),

@@ -5,15 +5,17 @@ import numpy as np
 import pytest
 
 import flexparcel as fp
-from flexparcel.contact.law import ContactLaw
+from flexparcel.contact.law import REFERENCE_SPACING, ContactLaw
 from flexparcel.model.rigid import RoundedBox
 
 
 def test_sheet_lands_on_its_edge_and_carries_its_weight():
     # A 200 x 100 mm sheet in the vertical xz-plane (out-of-plane motion held) falls 2 mm onto
-    # a plate edge first. At rest the line contact carries its weight W: with a linear law
-    # spread over E edges (3 stations of c/3 each), the edge sinks s = W / (E c) = 1.4 um;
-    # within 10 % (the edge's nodes share the load unevenly near its ends).
+    # a plate edge first. At rest the line contact carries its weight W: line contact is per
+    # length, the per-area law c times the 10 mm strip width, c_line = 5e5 N/m^2, so the
+    # 200 mm edge sinks s = W / (c_line L) = 1.4 um (each 20 mm edge carries 1e4 N/m, as the
+    # per-point law of 1e4 N/m per edge did); within 10 % (the edge's nodes share the load
+    # unevenly near its ends).
     t, rho = 0.3e-3, 2424.0
     pts, quads = fp.mesh.rectangle(0.2, 0.1, 10, 5)
     pts = np.column_stack([pts[:, 0], np.zeros(len(pts)), pts[:, 1] + 0.002])
@@ -21,16 +23,16 @@ def test_sheet_lands_on_its_edge_and_carries_its_weight():
     ids = b.add_shell_mesh(pts, quads, material=fp.ShellMaterial(926e6, 0.1, rho, t, 1.71e-3))
     b.fix(ids, ["y", "rx", "rz"])
     bottom = ids[np.isclose(pts[:, 2], 0.002)]
-    c = 1e4
+    c = 5e7  # per area [N/m^3]
     law = ContactLaw(
-        stiffness=c, damping=5.0, damping_option="indentation", indentation_exponent=0.0
+        stiffness=c, damping=2.5e4, damping_option="indentation", indentation_exponent=0.0
     )
     b.add_edge_contact(bottom, b.add_plane((0, 0, 0), (0, 0, 1)), law)
     model = b.finalize()
     r = fp.simulate(model, 0.3, dt_out=0.01)
     weight = model.total_mass() * 9.81
     sink = -r.positions[-1, bottom, 2].mean()
-    assert sink == pytest.approx(weight / (10 * c), rel=0.1)
+    assert sink == pytest.approx(weight / (c * REFERENCE_SPACING * 0.2), rel=0.1)
     assert np.abs(r.velocities[-1, ids, 2]).max() < 1e-3
 
 
@@ -58,10 +60,13 @@ def test_edge_contact_bad_input():
 
 
 T_SHEET, RHO_SHEET = 0.3e-3, 2424.0
-C_LINE = 1e4  # contact stiffness [N/m] of the line-contact scenes
+C_AREA = 1e7  # contact stiffness per area [N/m^3] of the line-contact scenes
+# the stations of these scenes: a 100 mm edge in 5, 20 mm each, times the 10 mm strip width
+STATION_AREA = REFERENCE_SPACING * 0.1 / 5
+C_LINE = C_AREA * STATION_AREA * 5  # a station's stiffness is C_LINE / 5 = 2e3 N/m
 # linear spring with constant damping (near-critical for the stations of a ~1.5 g sheet)
 LINE_LAW = ContactLaw(
-    stiffness=C_LINE, damping=2.0, damping_option="indentation", indentation_exponent=0.0
+    stiffness=C_AREA, damping=2e3, damping_option="indentation", indentation_exponent=0.0
 )
 SHEET = fp.ShellMaterial(926e6, 0.1, RHO_SHEET, T_SHEET, 1.71e-3)
 

@@ -27,7 +27,14 @@ def test_sheet_lands_on_sheet_and_rests_at_the_contact_thickness():
     # it is at rest by 0.2 s (median 1e-7 m off).
     t, drop = 0.3e-3, 0.005
     model, up = _stack(drop, t)
-    r = fp.simulate(model, 0.2, dt_out=0.002)
+    # A flat landing: with the per-area law every node of the sheet has the same contact
+    # frequency sqrt(c / (rho t)) (11.7e3 rad/s) and the sheet bounces as one body. With the
+    # default step error tolerance (0.1 mm) the rebound gained energy (measured on a plane:
+    # back to 2.6 mm of the 5 mm drop, then 3.2 mm; with steps of 20 us it rises 1.1 mm, the
+    # restitution of the law's zeta = 0.29). Per point, the corner nodes (a quarter of the
+    # mass on the full c) rang twice as fast and bent the sheet, which hid it. 1 um does it.
+    opts = fp.IntegratorOptions(tol_displacement=1e-6)
+    r = fp.simulate(model, 0.2, dt_out=0.002, options=opts)
     z = r.positions[:, up, 2]
     assert z.min() > 0.0  # never through the lower sheet
     # (the free corners may still curl up slightly while settling: allow 0.2 mm there)

@@ -30,6 +30,7 @@ from flexparcel.contact import (
     P_V_D,
     P_V_S,
     PACKED_SIZE,
+    REFERENCE_AREA,
     ContactLaw,
     anchored_friction,
     friction_coefficient,
@@ -370,8 +371,9 @@ def test_paper_units_round_trip_table6():
     )
     assert (c_mm, d_mm) == (611, 0.591)
     law = ContactLaw.from_paper_units(c_N_per_mm=c_mm, d_Ns_per_mm=d_mm, s_max_mm=0.05)
-    assert law.stiffness == pytest.approx(611.0e3, rel=1e-15)  # N/m
-    assert law.damping == pytest.approx(591.0, rel=1e-15)  # N s/m
+    # per point of the paper's 10 mm nodes: per unit area divided by (10 mm)^2 = 1e-4 m^2
+    assert law.stiffness == pytest.approx(611.0e3 / 1e-4, rel=1e-15)  # N/m^3
+    assert law.damping == pytest.approx(591.0 / 1e-4, rel=1e-15)  # N s/m^3
     assert law.damping_depth == pytest.approx(5e-5, rel=1e-15)
     assert (law.v_static, law.v_dynamic) == (pytest.approx(1e-3), pytest.approx(1.5e-3))
     back = law.to_paper_units()
@@ -395,7 +397,8 @@ def test_paper_units_nonlinear_exponents_give_same_force():
     s_mm, sdot_mm = 0.7, 250.0
     expect = c_mm * s_mm**m_s + d_mm * sdot_mm**m_d * s_mm**m_i  # N
     f, _, _ = normal_force_packed(s_mm * 1e-3, sdot_mm * 1e-3, law.packed())
-    assert f == pytest.approx(expect, rel=1e-12)
+    # the law is per area: a point of the reference 10 mm node's area has the paper's force
+    assert f * REFERENCE_AREA == pytest.approx(expect, rel=1e-12)
     back = ContactLaw.from_paper_units(**law.to_paper_units())
     assert same_law_dict(back.to_dict(), law.to_dict(), 1e-14)
 
@@ -508,6 +511,8 @@ def restitution_cut(c, d, m):
 @pytest.mark.parametrize("zeta", [0.05, 0.3, 0.8, None])
 def test_restitution_linear_spring_dashpot_closed_form(zeta):
     m, v0 = 0.1, 1.0  # a 100 g box at 1 m/s (a 5 cm drop)
+    # one contact point of the reference area (a 10 mm node): the per-area law times 1e-4 m^2
+    area = REFERENCE_AREA
     law_kw = dict(stiffness=611.0e3, damping_option="indentation", damping_exponent=1.0)
     if zeta is None:
         # The paper's Table 6 packaging-ground values (611 N/mm, 0.591 Ns/mm) with 100 g:
@@ -517,12 +522,12 @@ def test_restitution_linear_spring_dashpot_closed_form(zeta):
         )
     else:
         d = zeta * 2.0 * math.sqrt(611.0e3 * m)
-        law = ContactLaw(damping=d, indentation_exponent=0.0, **law_kw)
+        law = ContactLaw.from_point_values(area, damping=d, indentation_exponent=0.0, **law_kw)
     assert law.rebound_damping_factor == 0.0
     p = law.packed()
 
     def rhs(t, y):
-        return [y[1], -normal_force_packed(y[0], y[1], p)[0] / m]
+        return [y[1], -area * normal_force_packed(y[0], y[1], p)[0] / m]
 
     def leave(t, y):
         return y[0]
@@ -533,7 +538,7 @@ def test_restitution_linear_spring_dashpot_closed_form(zeta):
     )
     assert sol.status == 1, "the body must leave the plane"
     e_num = -sol.y_events[0][0][1] / v0
-    e_closed = restitution_cut(law.stiffness, law.damping, m)
+    e_closed = restitution_cut(area * law.stiffness, area * law.damping, m)
     # Only the ODE solver's error separates the two. With rtol = 1e-12 the global error is
     # ~1e-10 relative (measured 3e-12 ... 2e-10 over these cases); the force's kink at release
     # (eq. 6) lowers the local order there, but the step-size control still bounds the error.
@@ -576,7 +581,7 @@ def test_restitution_linear_spring_dashpot_closed_form(zeta):
             r"damping_option must be one of \['indentation', 'step'\]",
         ),
         (dict(max_penetration=0.0), r"max_penetration .* must be > 0 m or None"),
-        (dict(stick_stiffness=-5.0), r"stick_stiffness \(k_t\) must be > 0 N/m or None"),
+        (dict(stick_stiffness=-5.0), r"stick_stiffness \(k_t\) must be > 0 N/m\*\*3 or None"),
     ],
 )
 def test_bad_input_names_field_and_range(kwargs, pattern):
@@ -597,9 +602,10 @@ def test_bad_input_through_paper_units():
 def test_with_stick_model_defaults_to_the_normal_stiffness():
     law = ContactLaw.from_paper_units(c_N_per_mm=649, d_Ns_per_mm=0.579, mu_static=0.3)
     assert law.stick_stiffness is None
-    assert law.with_stick_model().stick_stiffness == pytest.approx(649e3)
+    # per area, like c: 649 N/mm at a 10 mm node = 6.49e9 N/m^3
+    assert law.with_stick_model().stick_stiffness == pytest.approx(6.49e9)
     assert law.with_stick_model(1e4).stick_stiffness == 1e4
-    assert law.with_stick_model().packed()[P_K_T] == pytest.approx(649e3)
+    assert law.with_stick_model().packed()[P_K_T] == pytest.approx(6.49e9)
     hertz = ContactLaw(stiffness=2e7, stiffness_exponent=1.5)
     with pytest.raises(ValueError, match="stick_stiffness"):
         hertz.with_stick_model()

@@ -22,7 +22,9 @@ def test_sheet_drapes_over_box_without_tunnelling():
     )
     pts, quads = fp.mesh.rectangle(side, side, 14, 14, origin=(-side / 2, -side / 2, 0.06))
     ids = b.add_shell_mesh(pts, quads, material=fp.ShellMaterial(926e6, 0.1, 2424.0, t, 1.71e-3))
-    law = ContactLaw(
+    # 1e4 N/m and 0.5 N s/m at an interior node of this mesh: the law is per unit area
+    law = ContactLaw.from_point_values(
+        (side / 14) ** 2,
         stiffness=1e4,
         damping=0.5,
         damping_option="indentation",

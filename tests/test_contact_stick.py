@@ -11,11 +11,15 @@ from flexparcel.model.rigid import RoundedBox
 G = 9.81
 SIDE, T, RHO = 0.04, 0.3e-3, 2424.0  # 40 mm sheet of 0.3 mm kraft-like shell
 MU_S, MU_D, K_T = 0.4, 0.3, 100.0
+NODE_AREA = (SIDE / 2) ** 2  # tributary area of the sheet's interior node (20 mm quads) [m^2]
 
 
 def _law(stick: bool) -> ContactLaw:
-    # linear spring 1e4 N/m per node with constant damping 1 N s/m (a node of ~0.15 g: zeta ~ 0.4)
-    return ContactLaw(
+    # linear spring 1e4 N/m with constant damping 1 N s/m (a node of ~0.15 g: zeta ~ 0.4) and
+    # stick stiffness k_t = 100 N/m at the interior node; the law is per unit area, so these
+    # are given per point of that node's area (an edge node gets half, a corner a quarter)
+    return ContactLaw.from_point_values(
+        NODE_AREA,
         stiffness=1e4,
         damping=1.0,
         damping_option="indentation",
@@ -64,11 +68,13 @@ def test_stick_model_holds_a_sheet_below_the_friction_angle(surface):
     # tan 15 deg = 0.27 < mu_s = 0.4. Gravity acts suddenly at t = 0, so the springs overshoot
     # and the lightly loaded corner nodes slip a little while the sheet rocks in (measured:
     # 15 um). After that it must not creep: the springs only oscillate (they have no damping of
-    # their own), by less than the whole slip limit mu_s m g cos / (N k_t) = 4.9 um, the
-    # stretch at which every spring of the rigid sheet would slip.
+    # their own), by less than the whole slip limit mu_s m g cos / (k_t A) = 11 um (k_t per
+    # area, A the sheet's area; the per-point law with 9 springs of 100 N/m had 4.9 um), the
+    # stretch at which every spring of the rigid sheet would slip: per area, each node's normal
+    # force and spring are both proportional to its area, so all slip at that stretch.
     t, x, _, mass = _sheet_on(surface, 15.0, True, 0.4)
     th = np.radians(15.0)
-    bound = MU_S * mass * G * np.cos(th) / (9 * K_T)
+    bound = MU_S * mass * G * np.cos(th) / (_law(True).stick_stiffness * SIDE**2)
     rest = t >= 0.1
     assert np.ptp(x[rest]) < bound
     assert abs(x[rest][-1] - x[rest][0]) < bound

@@ -67,6 +67,7 @@ from flexparcel.contact.law import (
     P_S_MAX,
     P_V_D,
     P_V_S,
+    REFERENCE_AREA,
     friction_force_packed,
     normal_force_packed,
 )
@@ -76,6 +77,9 @@ RTOL = 1e-6  # of the block's largest entry (see the module docstring)
 RTOL_ARM = 1e-3  # box blocks without the left-out arm terms
 H_X, H_TH, H_V = 1e-9, 1e-7, 1e-7
 ACT = 0.8  # schedule factor, to check that it scales the blocks too
+# the law is per unit area: a point of a 10 mm node's area (1e-4 m^2) has the paper's per-point
+# values, so the forces of these cases are those of RecurDyn's per-point law
+AREA = REFERENCE_AREA
 S = 5e-5  # penetration [m]: the middle of the STEP damping ramp (s_max = 0.1 mm)
 
 # the consignments' packaging-content law (paper Table 6: 649 N/mm, 0.579 Ns/mm STEP damping over
@@ -88,9 +92,9 @@ BLEND = replace(CONTENT, mu_static=0.4, rebound_damping_factor=0.5)
 # a Hertz-like spring with indentation damping (the other damping option of the law)
 HERTZ = replace(
     CONTENT,
-    stiffness=2e7,
+    stiffness=2e7 / AREA,  # 2e7 N/m^1.5 at a point of AREA
     stiffness_exponent=1.5,
-    damping=5e6,
+    damping=5e6 / AREA,
     damping_option="indentation",
     indentation_exponent=1.0,
 )
@@ -154,8 +158,9 @@ def _box_run(law, pos, rot, vel, anchor=None, start=None):
     half[1] = HALF
     radius = np.array([0.0, R_BOX])
     nc = box_contact_forces(
-        np.array([0]), np.array([1]), np.array([R_NODE]), np.array([0]), np.array([ACT]), half,
-        radius, law.packed()[None], pos, rot, vel, f, bk, bc, dofs, np.ones(2), 1e9, np.zeros(1),
+        np.array([0]), np.array([1]), np.array([R_NODE]), np.array([0]), np.array([ACT]),
+        np.array([AREA]), half, radius, law.packed()[None], pos, rot, vel, f, bk, bc, dofs,
+        np.ones(2), 1e9, np.zeros(1),
         np.zeros((1, 3)) if anchor is None else np.asarray(anchor, float)[None],
         np.array([0.0 if anchor is None else 1.0]), new, np.zeros(1), pos0, rot0,
     )[0]  # fmt: skip
@@ -292,7 +297,8 @@ def _face_run(law, pos, vel, side, anchor=None, pos0=None):
     dofs = np.zeros((1, 12), dtype=np.int64)
     nc = face_contact_forces(
         np.array([[0, 0]]), np.array([float(side)]), np.array([0]), np.array([[1, 2, 3]]), THICK,
-        law.packed(), ACT, pos, vel, f, fk, fc, dofs, np.ones(4), 1e9, np.zeros(1),
+        law.packed(), ACT, np.array([AREA]), pos, vel, f, fk, fc, dofs, np.ones(4), 1e9,
+        np.zeros(1),
         np.zeros((1, 3)) if anchor is None else np.asarray(anchor, float)[None],
         np.array([0.0 if anchor is None else 1.0]), np.zeros((1, 3)), np.zeros(1), pos0,
     )[0]  # fmt: skip
@@ -399,6 +405,9 @@ BELT = np.cross(PLANE_N, np.array([0.0, 1.0, 0.0]))
 BELT *= 0.5 / np.linalg.norm(BELT)  # 0.5 m/s in the plane
 R_EDGE = 0.15e-3
 SAMPLES = 3
+# a station's area: a 10 mm edge's third (10 mm / SAMPLES) times the default 10 mm strip width,
+# so an edge carries the per-point law once, as AREA does for a node
+STATION = REFERENCE_AREA / SAMPLES
 _T1 = np.cross(PLANE_N, np.array([1.0, 0.0, 0.0]))
 _T1 /= np.linalg.norm(_T1)  # the edge's direction, in the plane
 _T2 = np.cross(PLANE_N, _T1)
@@ -410,8 +419,8 @@ def _edge_run(law, pos, vel):
     ec = np.zeros((1, 6, 6))
     dofs = np.zeros((1, 6), dtype=np.int64)
     nc = edge_plane_forces(
-        np.array([[0, 1]]), PLANE_P, PLANE_N, BELT, R_EDGE, SAMPLES, law.packed(), ACT, pos, vel,
-        f, ek, ec, dofs, np.ones(2), 1e9, np.zeros(1),
+        np.array([[0, 1]]), PLANE_P, PLANE_N, BELT, R_EDGE, SAMPLES, law.packed(), ACT,
+        np.array([STATION]), pos, vel, f, ek, ec, dofs, np.ones(2), 1e9, np.zeros(1),
     )[0]  # fmt: skip
     assert list(dofs[0]) == [0, 1, 2, 6, 7, 8]
     return f[:, :3].ravel(), ek[0], ec[0], nc
@@ -492,7 +501,7 @@ def test_box_contact_rebound_without_rebound_factor_releases():
 # and a new contact anchored where the node was at the step's start
 # --------------------------------------------------------------------------------------------------
 
-K_T = 649e3  # stick stiffness [N/m]: the normal stiffness of CONTENT
+K_T = CONTENT.stiffness  # stick stiffness [N/m^3]: the normal stiffness of CONTENT (per area)
 STICK = replace(CONTENT, stick_stiffness=K_T)
 BLEND_STICK = replace(BLEND, stick_stiffness=K_T)
 
@@ -501,13 +510,13 @@ def _stick_regime(law, force, n, a):
     """'stick' or 'slip' from the node's force (3,) and the trial spring a (3,), with margins:
     stick needs k_t |a| <= 0.8 mu_s F_N, slip k_t |a| >= 1.25 mu_s F_N (so q +- h never
     crosses the switch)."""
-    f_n = force @ n / ACT
+    f_n = force @ n / (ACT * AREA)  # the law's per-area F_N
     assert f_n > 0.0
     limit = law.mu_static * f_n
     pull = law.stick_stiffness * np.linalg.norm(a)
     if pull <= 0.8 * limit:
         # the spring force itself, to round-off
-        ft = (force - (force @ n) * n) / ACT
+        ft = (force - (force @ n) * n) / (ACT * AREA)
         assert np.allclose(ft, -law.stick_stiffness * a, rtol=1e-9, atol=1e-12 * limit)
         return "stick"
     assert pull >= 1.25 * limit
@@ -629,8 +638,8 @@ def _edge_box_run(law, pos, rot, vel):
     half[2] = HALF
     radius = np.array([0.0, 0.0, R_BOX])
     nc = edge_box_forces(
-        np.array([[0, 1]]), 2, R_NODE, SAMPLES, law.packed(), ACT, half, radius, pos, rot, vel,
-        f, ek, ec, dofs, np.ones(3), 1e9, np.zeros(1),
+        np.array([[0, 1]]), 2, R_NODE, SAMPLES, law.packed(), ACT, np.array([STATION]), half,
+        radius, pos, rot, vel, f, ek, ec, dofs, np.ones(3), 1e9, np.zeros(1),
     )[0]  # fmt: skip
     assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 12, 13, 14, 15, 16, 17]
     return np.concatenate([f[0, :3], f[1, :3], f[2]]), ek[0], ec[0], nc
@@ -736,7 +745,8 @@ def _edge_face_run(law, pos, vel, side):
     pairs = np.array([[0, 0], [1, 0], [2, 0]])
     nc = edge_face_forces(
         pairs, np.full(3, float(side)), np.array([[0, 1]]), SAMPLES, np.array([[2, 3, 4]]),
-        THICK, law.packed(), ACT, pos, vel, f, ek, ec, dofs, np.ones(5), 1e9, np.zeros(1),
+        THICK, law.packed(), ACT, np.array([STATION]), pos, vel, f, ek, ec, dofs, np.ones(5),
+        1e9, np.zeros(1),
     )[0]  # fmt: skip
     live = dofs[:, 0] >= 0
     assert nc == live.sum()
@@ -807,7 +817,8 @@ def _edge_edge_run(law, pos, vel, n0):
     dofs = np.zeros((1, 12), dtype=np.int64)
     nc = edge_edge_forces(
         np.array([[0, 0]]), np.asarray(n0, float)[None], np.array([[0, 1]]), np.array([[2, 3]]),
-        THICK, law.packed(), ACT, pos, vel, f, ek, ec, dofs, np.ones(4), 1e9, np.zeros(1),
+        THICK, law.packed(), ACT, np.array([AREA]), pos, vel, f, ek, ec, dofs, np.ones(4),
+        1e9, np.zeros(1),
     )[0]  # fmt: skip
     if nc:
         assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 12, 13, 14, 18, 19, 20]
@@ -877,7 +888,8 @@ def test_edge_edge_pushes_back_to_the_side_it_started_on():
         assert nc == 1
         on_a = f[:6].reshape(2, 3).sum(axis=0)
         on_b = f[6:].reshape(2, 3).sum(axis=0)
-        np.testing.assert_allclose(on_a, ACT * c * push * _NAB, rtol=1e-9)  # linear law
+        # linear law, per area times the pair's area
+        np.testing.assert_allclose(on_a, ACT * AREA * c * push * _NAB, rtol=1e-9)
         np.testing.assert_allclose(on_b, -on_a, rtol=1e-12)
     # farther than h on the start side: no contact
     p = pos.copy()

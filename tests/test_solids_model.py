@@ -5,7 +5,7 @@ import pytest
 
 import flexparcel as fp
 from conftest import assert_rests_at_contact_thickness, drop_sheet_on
-from flexparcel.contact.law import ContactLaw
+from flexparcel.contact.law import REFERENCE_AREA, ContactLaw
 from flexparcel.elements.solid import SolidMaterial
 
 
@@ -59,7 +59,10 @@ def test_soft_block_falls_and_rests_on_the_ground():
     ids = b.add_solid_mesh(
         pts, cells, "hex8", material=SolidMaterial(1e5, 0.3, 1000.0, damping_ratio=1e-3)
     )
-    law = ContactLaw(
+    # 1e4 N/m and 2 N s/m per point of a 10 mm node: the law is per unit area of the block's
+    # boundary faces (1e8 N/m^3)
+    law = ContactLaw.from_point_values(
+        REFERENCE_AREA,
         stiffness=1e4,
         damping=2.0,
         damping_option="indentation",

@@ -20,8 +20,9 @@ from flexparcel.contact.bodies import EdgeBoxSet, NodeBoxSet
 from flexparcel.contact.edge_edge import EdgeEdgeSet
 from flexparcel.contact.edges import EdgePlaneSet
 from flexparcel.contact.faces import EdgeFaceSet, NodeFaceSet
-from flexparcel.contact.law import PACKED_SIZE, ContactLaw
+from flexparcel.contact.law import PACKED_SIZE, REFERENCE_AREA, REFERENCE_SPACING, ContactLaw
 from flexparcel.contact.planes import PlanePointSet
+from flexparcel.contact.tributary import node_areas, station_areas
 from flexparcel.elements.shell import ShellGroup
 from flexparcel.elements.solid import SolidGroup
 from flexparcel.model.checks import finite_number
@@ -241,14 +242,28 @@ class ModelBuilder:
         return len(self._planes) - 1
 
     def add_contact(
-        self, target, plane: int, law, *, radius: float = 0.0, schedule: Schedule | None = None
+        self,
+        target,
+        plane: int,
+        law,
+        *,
+        radius: float = 0.0,
+        area=None,
+        schedule: Schedule | None = None,
     ) -> None:
-        """Contact between ``target`` and plane ``plane`` with a :class:`ContactLaw`.
+        """Contact between ``target`` and plane ``plane`` with a :class:`ContactLaw` (per unit
+        area, see :mod:`flexparcel.contact.law`).
 
         ``target``: a rigid body's node id (from :meth:`add_rigid_body`): its rounded box's
-        inner corners with its edge radius touch the plane; or an array of shell node ids with
-        a contact ``radius`` [m] (e.g. half the shell thickness). ``schedule`` switches the
-        pair on (1) and off (0) in time.
+        inner corners with its edge radius touch the plane; or an array of shell (or solid
+        surface) node ids with a contact ``radius`` [m] (e.g. half the shell thickness).
+        ``area`` [m^2], a number or one per point: the area each contact point carries. For
+        nodes it defaults to their tributary areas on the surfaces added so far (see
+        :meth:`node_areas`). A box corner has no surface of its own: it defaults to
+        :data:`~flexparcel.contact.law.REFERENCE_AREA` (1e-4 m^2, a 10 mm node), i.e. the
+        paper's per-point semantics, so a law from :meth:`ContactLaw.from_paper_units` gives
+        each corner the paper's per-point stiffness. ``schedule`` switches the pair on (1) and
+        off (0) in time.
         """
         _require_law("add_contact", law)
         if not (isinstance(plane, int | np.integer) and 0 <= plane < len(self._planes)):
@@ -263,13 +278,17 @@ class ModelBuilder:
             offsets = shape.corners()
             nodes = np.full(len(offsets), int(target))
             radii = np.full(len(offsets), shape.edge_radius)
+            areas = _given_areas("add_contact", REFERENCE_AREA if area is None else area, nodes)
         else:
             nodes = self._check_ids("add_contact", target)
             if set(nodes.tolist()) & set(rigid):
                 raise ValueError("add_contact: give a rigid body as its single node id")
             offsets = np.zeros((len(nodes), 3))
             radii = np.full(len(nodes), r)
-        self._contact_sets.append(PlanePointSet(nodes, offsets, radii, int(plane), law, sched))
+            areas = self._point_areas("add_contact", nodes, area)
+        self._contact_sets.append(
+            PlanePointSet(nodes, offsets, radii, int(plane), law, sched, areas)
+        )
 
     def add_fdr(self, node_ids, reference: int | None = None) -> int:
         """Tie ``node_ids`` rigidly to a reference node (RecurDyn FDR, Nastran RBE2): they follow
@@ -327,32 +346,51 @@ class ModelBuilder:
         self.add_fdr([body_b], reference=body_a)
 
     def add_body_contact(
-        self, node_ids, body: int, law, *, radius: float = 0.0, schedule: Schedule | None = None
+        self,
+        node_ids,
+        body: int,
+        law,
+        *,
+        radius: float = 0.0,
+        area=None,
+        schedule: Schedule | None = None,
     ) -> None:
         """Contact between shell nodes (contact radius [m], e.g. half the shell thickness) and
-        the rounded box of rigid body ``body`` (its node id), e.g. packaging on its content."""
+        the rounded box of rigid body ``body`` (its node id), e.g. packaging on its content.
+        Each node carries its tributary ``area`` [m^2] (default: :meth:`node_areas`) times
+        the per-area law."""
         name = "add_body_contact"
         _require_law(name, law)
         body = self._rigid_body(name, body)
         nodes = self._check_ids(name, node_ids)
         r = _nonnegative_radius(name, radius)
         sched = _schedule(schedule)
-        self._contact_sets.append(NodeBoxSet(nodes, body, r, law, sched))
+        areas = self._point_areas(name, nodes, area)
+        self._contact_sets.append(NodeBoxSet(nodes, body, r, law, sched, areas))
 
     def add_face_contact(
-        self, node_ids, face_node_ids, law, *, thickness: float, schedule: Schedule | None = None
+        self,
+        node_ids,
+        face_node_ids,
+        law,
+        *,
+        thickness: float,
+        area=None,
+        schedule: Schedule | None = None,
     ) -> None:
         """Node-to-face contact: nodes ``node_ids`` against the shell faces whose corners all
         lie in ``face_node_ids`` (packaging layer against layer, consignment against
         consignment). ``thickness`` [m]: the contact distance, e.g. the mean of the two shells'
-        thicknesses. Both sides of a face are free (thin shells)."""
+        thicknesses. Both sides of a face are free (thin shells). Each slave node carries its
+        tributary ``area`` [m^2] (default: :meth:`node_areas`) times the per-area law."""
         name = "add_face_contact"
         _require_law(name, law)
         nodes = self._check_ids(name, node_ids)
         h = _positive_thickness(name, thickness)
         tris = self._face_triangles(name, face_node_ids)
         sched = _schedule(schedule)
-        self._contact_sets.append(NodeFaceSet(nodes, tris, h, law, sched))
+        areas = self._point_areas(name, nodes, area)
+        self._contact_sets.append(NodeFaceSet(nodes, tris, h, law, sched, areas))
 
     def add_edge_face_contact(
         self,
@@ -362,21 +400,24 @@ class ModelBuilder:
         *,
         thickness: float,
         samples: int = 3,
+        width: float = REFERENCE_SPACING,
         schedule: Schedule | None = None,
     ) -> None:
         """Line contact of the shell edges whose two nodes are both in ``node_ids`` against the
         shell (or solid boundary) faces whose corners all lie in ``face_node_ids``, e.g. a
         packaging's border against another consignment; each edge is sampled at ``samples``
         stations (see :func:`flexparcel.contact.faces.edge_face_forces`). ``thickness`` [m] as
-        for :meth:`add_face_contact`."""
+        for :meth:`add_face_contact`. Line contact is per unit length: the per-area law times
+        the strip ``width`` [m] (default 10 mm, the paper's node spacing, so a 10 mm edge
+        carries a paper law's per-point value), each station its edge's length / samples."""
         name = "add_edge_face_contact"
         _require_law(name, law)
         h = _positive_thickness(name, thickness)
         edges = self._shell_edges(name, node_ids)
         tris = self._face_triangles(name, face_node_ids)
-        self._contact_sets.append(
-            EdgeFaceSet(edges, tris, h, _sample_count(name, samples), law, _schedule(schedule))
-        )
+        n = _sample_count(name, samples)
+        areas = self._station_areas(name, edges, n, width)
+        self._contact_sets.append(EdgeFaceSet(edges, tris, h, n, law, _schedule(schedule), areas))
 
     def add_edge_edge_contact(
         self,
@@ -385,19 +426,25 @@ class ModelBuilder:
         law,
         *,
         thickness: float,
+        width: float = REFERENCE_SPACING,
         schedule: Schedule | None = None,
     ) -> None:
         """Edge-to-edge line contact of the shell (or rigid mesh) edges whose two nodes are both
         in ``node_ids`` against those whose two nodes are both in ``other_node_ids``, e.g. a
         deflector's tip edge against a packaging's element edges, which cross it between any
         stations of :meth:`add_edge_face_contact`. ``thickness`` [m]: the sum of the two
-        edges' radii (:mod:`flexparcel.contact.edge_edge`). Edges sharing a node never touch."""
+        edges' radii (:mod:`flexparcel.contact.edge_edge`). Edges sharing a node never touch.
+        Per unit length: a pair carries the per-area law times ``width`` [m] (default 10 mm)
+        times the reference length of its edge of ``other_node_ids`` (the packaging's)."""
         name = "add_edge_edge_contact"
         _require_law(name, law)
         h = _positive_thickness(name, thickness)
         edges_a = self._shell_edges(name, node_ids)
         edges_b = self._shell_edges(name, other_node_ids)
-        self._contact_sets.append(EdgeEdgeSet(edges_a, edges_b, h, law, _schedule(schedule)))
+        areas_b = self._station_areas(name, edges_b, 1, width)
+        self._contact_sets.append(
+            EdgeEdgeSet(edges_a, edges_b, h, law, _schedule(schedule), areas_b)
+        )
 
     def _face_triangles(self, name: str, face_node_ids) -> np.ndarray:
         """Triangles (M, 3) of the shell faces (quads split once) and solid boundary faces
@@ -423,17 +470,20 @@ class ModelBuilder:
         *,
         radius: float = 0.0,
         samples: int = 3,
+        width: float = REFERENCE_SPACING,
         schedule: Schedule | None = None,
     ) -> None:
         """Line contact of the shell edges whose two nodes are both in ``node_ids`` (e.g. the
         glued border of an envelope standing on it) against plane ``plane``; each edge is
-        sampled at ``samples`` stations (see :mod:`flexparcel.contact.edges`)."""
+        sampled at ``samples`` stations (see :mod:`flexparcel.contact.edges`). Per unit
+        length: the per-area law times the strip ``width`` [m] (default 10 mm, the paper's node
+        spacing), each station its edge's reference length / samples."""
         if not (isinstance(plane, int | np.integer) and 0 <= plane < len(self._planes)):
             raise ValueError(
                 f"add_edge_contact: unknown plane {plane!r}; planes are 0..{len(self._planes) - 1}"
             )
         self._contact_sets.append(EdgePlaneSet(*self._edge_set(
-            "add_edge_contact", node_ids, int(plane), law, radius, samples, schedule
+            "add_edge_contact", node_ids, int(plane), law, radius, samples, width, schedule
         )))  # fmt: skip
 
     def add_edge_body_contact(
@@ -444,14 +494,16 @@ class ModelBuilder:
         *,
         radius: float = 0.0,
         samples: int = 3,
+        width: float = REFERENCE_SPACING,
         schedule: Schedule | None = None,
     ) -> None:
         """Line contact of the shell edges whose two nodes are both in ``node_ids`` against the
         rounded box of rigid body ``body`` (its node id), e.g. a packaging's border against its
-        content's edges; ``samples`` stations per edge (see :mod:`flexparcel.contact.bodies`)."""
+        content's edges; ``samples`` stations per edge (see :mod:`flexparcel.contact.bodies`).
+        Per unit length: the per-area law times the strip ``width`` [m] (default 10 mm)."""
         name = "add_edge_body_contact"
         self._contact_sets.append(EdgeBoxSet(*self._edge_set(
-            name, node_ids, self._rigid_body(name, body), law, radius, samples, schedule
+            name, node_ids, self._rigid_body(name, body), law, radius, samples, width, schedule
         )))  # fmt: skip
 
     def _rigid_body(self, name: str, body) -> int:
@@ -463,13 +515,69 @@ class ModelBuilder:
             )
         return int(body)
 
-    def _edge_set(self, name, node_ids, target, law, radius, samples, schedule) -> tuple:
-        """(edges (E, 2), target, radius, samples, law, schedule) of a line-contact set against
-        a plane or a body, with its input checked."""
+    def _edge_set(self, name, node_ids, target, law, radius, samples, width, schedule) -> tuple:
+        """(edges (E, 2), target, radius, samples, law, schedule, station areas (E,)) of a
+        line-contact set against a plane or a body, with its input checked."""
         _require_law(name, law)
         r = _nonnegative_radius(name, radius)
         n = _sample_count(name, samples)
-        return (self._shell_edges(name, node_ids), target, r, n, law, _schedule(schedule))
+        edges = self._shell_edges(name, node_ids)
+        areas = self._station_areas(name, edges, n, width)
+        return (edges, target, r, n, law, _schedule(schedule), areas)
+
+    def node_areas(self, node_ids) -> np.ndarray:
+        """Tributary area [m^2] of each node in ``node_ids``, shape (k,), on the reference
+        geometry of the surfaces added so far: its median-dual share of every shell cell
+        (quad or triangle, each once), rigid mesh triangle and solid boundary face around it
+        (:func:`flexparcel.contact.tributary.node_areas`: a third of each triangle, a quarter
+        of a parallelogram quad). The per-area contact law is multiplied by it; zero for a
+        solid's interior node."""
+        ids = self._check_ids("node_areas", node_ids)
+        pts = np.concatenate(self._points)
+        return node_areas(pts, self._surface_faces(), self._node_count)[ids]
+
+    def _surface_faces(self) -> list[np.ndarray]:
+        """Polygons (m, 3) and (m, 4) of every surface a contact point can stand for: the
+        shell cells and rigid mesh triangles (a cell given twice counted once) and the solid
+        boundary faces."""
+        by_size: dict[int, list] = {3: [], 4: []}
+        for ctype, lst in self._cells.items():
+            if ctype in ("quad", "triangle"):
+                for c in lst:
+                    by_size[c.shape[1]].append(np.asarray(c, dtype=np.int64))
+        solid_cells = [g.cells for g in self._groups if isinstance(g, SolidGroup)]
+        for face in _solid_boundary_faces(solid_cells):
+            by_size[len(face)].append(np.asarray(face, dtype=np.int64)[None, :])
+        out = []
+        for lst in by_size.values():
+            if lst:
+                c = np.vstack(lst)
+                _, first = np.unique(np.sort(c, axis=1), axis=0, return_index=True)
+                out.append(c[np.sort(first)])
+        return out
+
+    def _point_areas(self, name: str, nodes: np.ndarray, area) -> np.ndarray:
+        """Areas [m^2] the contact points at ``nodes`` carry: ``area`` if given (a number or
+        one per node), else their tributary areas (:meth:`node_areas`). A node on no surface
+        (not a solid's interior node) has none: ``ValueError`` asking for ``area``."""
+        if area is not None:
+            return _given_areas(name, area, nodes)
+        a = self.node_areas(nodes)
+        solid = _union([g.nodes() for g in self._groups if isinstance(g, SolidGroup)])
+        bad = nodes[(a == 0.0) & ~np.isin(nodes, solid)]
+        if bad.size:
+            raise ValueError(
+                f"{name}: node {int(bad[0])} lies on no shell cell or solid boundary face, so it "
+                "has no tributary area for the per-area contact law; give area= [m^2]"
+            )
+        return a
+
+    def _station_areas(self, name: str, edges: np.ndarray, samples: int, width) -> np.ndarray:
+        """Area [m^2] of each station of each edge: reference length / samples x ``width``."""
+        w = finite_number(f"{name}: width", width)
+        if not w > 0.0:
+            raise ValueError(f"{name}: width must be > 0 m, got {width!r}")
+        return station_areas(np.concatenate(self._points), edges, samples, w)
 
     def _shell_edges(self, name: str, node_ids) -> np.ndarray:
         """Shell edges (E, 2), sorted, whose two nodes are both in ``node_ids``."""
@@ -482,11 +590,14 @@ class ModelBuilder:
         return edges
 
     def add_self_contact(
-        self, node_ids, law, *, thickness: float, schedule: Schedule | None = None
+        self, node_ids, law, *, thickness: float, area=None, schedule: Schedule | None = None
     ) -> None:
         """Self contact of a shell mesh (e.g. an envelope's layers): its nodes against its own
-        faces, a node never against a face it is a corner of."""
-        self.add_face_contact(node_ids, node_ids, law, thickness=thickness, schedule=schedule)
+        faces, a node never against a face it is a corner of (``area`` as for
+        :meth:`add_face_contact`)."""
+        self.add_face_contact(
+            node_ids, node_ids, law, thickness=thickness, area=area, schedule=schedule
+        )
 
     # ------------------------------------------------------------------ supports
     def _check_ids(self, what: str, node_ids) -> np.ndarray:
@@ -782,6 +893,33 @@ def _solid_boundary_triangles(solid_cells: list, nodes: set) -> np.ndarray:
             if len(row) == 4:
                 out.append([row[0], row[2], row[3]])
     return np.asarray(out, dtype=np.int64).reshape(-1, 3)
+
+
+def _solid_boundary_faces(solid_cells: list) -> list:
+    """Boundary faces (faces of exactly one solid element, over all solid blocks
+    ``solid_cells``, each (m, k)) as node lists of 3 or 4 corners, unsplit."""
+    count: dict = {}
+    faces = []
+    for cells in solid_cells:
+        for face in _SOLID_FACES[cells.shape[1]]:
+            for row in np.asarray(cells)[:, face].tolist():
+                key = tuple(sorted(row))
+                count[key] = count.get(key, 0) + 1
+                faces.append((key, row))
+    return [row for key, row in faces if count[key] == 1]
+
+
+def _given_areas(name: str, area, nodes: np.ndarray) -> np.ndarray:
+    """``area`` [m^2] (a number or one per contact point) checked, shape (len(nodes),)."""
+    a = np.asarray(area, dtype=float)
+    if a.ndim > 1 or (a.ndim == 1 and a.shape != nodes.shape):
+        raise ValueError(
+            f"{name}: area must be a number or one per contact point ({nodes.size}), "
+            f"got shape {a.shape}"
+        )
+    if not np.all(np.isfinite(a) & (a >= 0.0)):
+        raise ValueError(f"{name}: area must be finite and >= 0 m^2, got {area!r}")
+    return np.array(np.broadcast_to(a, nodes.shape), dtype=float)
 
 
 def _union(parts: list) -> np.ndarray:

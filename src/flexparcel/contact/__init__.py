@@ -1,7 +1,9 @@
 """Contact: the RecurDyn-style contact law (paper section 2.1, eqs. 1-10) and a stick model.
 
 Detection (which points touch, penetration and its rate, tangential slip) lives elsewhere; this
-package turns those kinematic quantities into forces and exact derivatives. SI units throughout.
+package turns those kinematic quantities into forces and exact derivatives. SI units throughout;
+the law is per unit area of the slave surface (per length for line contact), each contact point
+carrying its tributary area (:mod:`flexparcel.contact.tributary`).
 """
 
 from flexparcel.contact.law import (
@@ -24,6 +26,8 @@ from flexparcel.contact.law import (
     P_V_D,
     P_V_S,
     PACKED_SIZE,
+    REFERENCE_AREA,
+    REFERENCE_SPACING,
     ContactLaw,
     anchored_friction,
     friction_coefficient,
@@ -46,6 +50,8 @@ __all__ = [
     "DAMPING_STEP",
     "DAMPING_INDENTATION",
     "PACKED_SIZE",
+    "REFERENCE_AREA",
+    "REFERENCE_SPACING",
     "P_C",
     "P_M_S",
     "P_OPTION",

@@ -7,7 +7,10 @@ the box's outward normal ``n`` and the closest inner-box point ``c``. The contac
 box is ``c + r_b n`` at arm ``a`` from the box centre, and
 
     v_rel = v_p - (v_b + w_b x a),   s' = -n . v_rel,   vt = v_rel - (n . v_rel) n,
-    f = F_N(s, s') n + F_T(vt, F_N)  on the node,   -f at the arm on the box.
+    f = A (F_N(s, s') n + F_T(vt, F_N))  on the node,   -f at the arm on the box,
+
+with the per-area law of :mod:`flexparcel.contact.law` and ``A`` [m^2] the node's tributary
+area (reference geometry, :mod:`flexparcel.contact.tributary`).
 
 The Newton tangent includes the change of ``s``, ``s'``, ``n`` and the slip with the node's
 translation and the box's translation, spin and velocities (``s'`` and the slip change with the
@@ -26,7 +29,8 @@ so the history turns and travels with the box.
 
 Line contact (:func:`edge_box_forces`): a shell edge (nodes i, j) is sampled at ``k`` stations
 ``p = (1 - xi) x_i + xi x_j`` as in :mod:`flexparcel.contact.edges`, each a contact point
-against the box with the law scaled by 1/k; a station's force is shared by the two nodes as
+against the box carrying the area ``w L / k`` (line contact per unit length: ``L`` the edge's
+reference length, ``w`` the strip width); a station's force is shared by the two nodes as
 ``(1 - xi) f`` and ``xi f``. Stations use the regularised friction law (no stick history).
 """
 
@@ -146,6 +150,7 @@ def box_contact_forces(
     bp_radius,
     bp_law,
     bp_active,
+    bp_area,
     box_half,
     box_radius,
     laws,
@@ -168,7 +173,8 @@ def box_contact_forces(
 ):
     """Forces of all (node, box) candidate pairs.
 
-    Args: pair arrays (Q,): node, box node, node contact radius [m], law index, schedule factor;
+    Args: pair arrays (Q,): node, box node, node contact radius [m], law index, schedule factor,
+    tributary area [m^2] (the per-area law is multiplied by it);
     per box node arrays indexed by node id: ``box_half`` (n, 3), ``box_radius`` (n,).
     Outputs: ``out_f`` (n, 6) accumulated generalised forces; ``out_k`` and ``out_c`` (Q, 9, 9)
     derivatives of the pair's generalised force [f_node(3), F_box(3), M_box(3)] with respect to
@@ -189,7 +195,7 @@ def box_contact_forces(
     xi = np.zeros(3)
     for q in range(bp_node.shape[0]):
         has_anchor_new[q] = 0.0
-        act = bp_active[q]
+        act = bp_active[q] * bp_area[q]
         if act == 0.0:
             continue
         node = bp_node[q]
@@ -230,23 +236,22 @@ def box_contact_forces(
 
 @nb.njit(cache=True)
 def edge_box_forces(
-    edges, box, radius, samples, law, act, box_half, box_radius, pos, rot, vel, out_f, out_k,
-    out_c, out_dofs, mass, v_impact, out_w2,
+    edges, box, radius, samples, law, act, station_area, box_half, box_radius, pos, rot, vel,
+    out_f, out_k, out_c, out_dofs, mass, v_impact, out_w2,
 ):  # fmt: skip
-    """Line contact of shell edges (E, 2) with the rounded box of rigid node ``box``; edge
-    contact radius ``radius`` [m], ``samples`` stations per edge, packed ``law``, schedule
-    factor ``act``; ``box_half`` (n, 3), ``box_radius`` (n,) per node id as for
-    :func:`box_contact_forces`. Outputs: ``out_f`` (n, 6) accumulated; blocks (E, 12, 12) of
-    d[f_i, f_j, F_box, M_box] / d[x_i, x_j, x_box, spin_box] (``out_k``) and / d[v_i, v_j,
-    v_box, w_box] (``out_c``); DOF numbers (E, 12), -1 for edges not in contact.
-    Returns (stations in contact, deepest penetration [m], worst penetration / max)."""
+    """Line contact of shell edges (E, 2) with the rounded box of rigid node ``box``; edge contact
+    radius ``radius`` [m], ``samples`` stations per edge, packed ``law``, schedule factor ``act``,
+    the area [m^2] ``station_area[e]`` of each station of edge e; ``box_half`` (n, 3),
+    ``box_radius`` (n,) per node id as for :func:`box_contact_forces`. Outputs: ``out_f`` (n, 6)
+    accumulated; blocks (E, 12, 12) of d[f_i, f_j, F_box, M_box] / d[x_i, x_j, x_box, spin_box]
+    (``out_k``) and / d[v_i, v_j, v_box, w_box] (``out_c``); DOF numbers (E, 12), -1 for edges not
+    in contact. Returns (stations in contact, deepest penetration [m], worst penetration / max)."""
     n_contact = 0
     deepest = 0.0
     worst = 0.0
     out_dofs[:, :] = -1
     if act == 0.0:
         return 0, 0.0, 0.0
-    scale = act / samples
     xb = pos[box]
     rb = rot[box]
     vb = vel[box, :3]
@@ -259,6 +264,7 @@ def edge_box_forces(
         tmap[3 + i, 6 + i] = 1.0
     for e in range(edges.shape[0]):
         i0, i1 = edges[e, 0], edges[e, 1]
+        scale = act * station_area[e]
         touched = False
         for st in range(samples):
             t = (st + 0.5) / samples
@@ -294,17 +300,21 @@ def edge_box_forces(
 
 class NodeBoxSet(ContactSet):
     """Shell nodes (contact radius [m]) against the rounded box of one rigid body, e.g. a
-    packaging on its content. History: the stick model's anchors (body frame) per node."""
+    packaging on its content; ``areas`` (Q,): each node's tributary area [m^2] (reference
+    geometry) by which the per-area law is multiplied. History: the stick model's anchors
+    (body frame) per node."""
 
     kind = "node_box"
 
-    def __init__(self, nodes, box: int, radius: float, law, schedule) -> None:
+    def __init__(self, nodes, box: int, radius: float, law, schedule, areas) -> None:
         super().__init__(law, schedule)
         self.node = np.ascontiguousarray(nodes, dtype=np.int64)
         """Shell nodes, shape (Q,)."""
         self.box = int(box)
         """The rigid body's node."""
         self.radius = float(radius)
+        self.area = np.ascontiguousarray(np.broadcast_to(areas, self.node.shape), dtype=float)
+        """Tributary area of each node [m^2], shape (Q,)."""
         self.anchors = StickAnchors(self.node.size)
 
     def evaluate(self, ctx, state, out) -> None:
@@ -312,7 +322,7 @@ class NodeBoxSet(ContactSet):
         bk, bc, dofs = pair_blocks(q, 9)
         n_contact, depth, _, ratio = box_contact_forces(
             self.node, np.full(q, self.box), np.full(q, self.radius), np.zeros(q, np.int64),
-            np.full(q, ctx.factors[self.schedule_index]), ctx.box_half,
+            np.full(q, ctx.factors[self.schedule_index]), self.area, ctx.box_half,
             ctx.model.box_radius_by_node, ctx.laws[self.law_index : self.law_index + 1],
             state.positions, state.rotations, state.velocities, out.forces, bk, bc, dofs,
             ctx.node_mass, ctx.impact_speed, ctx.w2, *self.anchors.kernel_args(),
@@ -340,13 +350,20 @@ class NodeBoxSet(ContactSet):
 
 class EdgeBoxSet(ContactSet):
     """Line contact of shell edges (E, 2) against the rounded box of one rigid body, each
-    edge sampled at ``samples`` stations (a packaging's border on its content's edges)."""
+    edge sampled at ``samples`` stations (a packaging's border on its content's edges);
+    ``station_areas`` (E,): the area [m^2] each station of an edge carries
+    (:func:`flexparcel.contact.tributary.station_areas`)."""
 
     kind = "edge_box"
 
-    def __init__(self, edges, box: int, radius: float, samples: int, law, schedule) -> None:
+    def __init__(
+        self, edges, box: int, radius: float, samples: int, law, schedule, station_areas
+    ) -> None:
         super().__init__(law, schedule)
         self.edges = np.ascontiguousarray(edges, dtype=np.int64)
+        self.station_area = np.ascontiguousarray(
+            np.broadcast_to(station_areas, self.edges.shape[:1]), dtype=float
+        )
         self.box = int(box)
         self.radius = float(radius)
         self.samples = int(samples)
@@ -355,9 +372,9 @@ class EdgeBoxSet(ContactSet):
         ek, ec, dofs = pair_blocks(self.edges.shape[0], 12)
         n_contact, depth, ratio = edge_box_forces(
             self.edges, self.box, self.radius, self.samples, ctx.laws[self.law_index],
-            ctx.factors[self.schedule_index], ctx.box_half, ctx.model.box_radius_by_node,
-            state.positions, state.rotations, state.velocities, out.forces, ek, ec, dofs,
-            ctx.node_mass, ctx.impact_speed, ctx.w2,
+            ctx.factors[self.schedule_index], self.station_area, ctx.box_half,
+            ctx.model.box_radius_by_node, state.positions, state.rotations, state.velocities,
+            out.forces, ek, ec, dofs, ctx.node_mass, ctx.impact_speed, ctx.w2,
         )  # fmt: skip
         out.coupled_blocks.append((ek, ec, dofs))
         out.merge(n_contact, depth, ratio)

@@ -12,13 +12,17 @@ broad phase, :func:`edge_edge_sides`): with ``sigma = sign(n . n0)``,
     penetration  g = h - sigma dist       (h: the contact thickness, the two radii),
     push         m = sigma n              (continuous where the segments pass through each other),
     v_rel = v(x_p) - v(x_q),  g' = -m . v_rel,
-    f = F_N(g, g') m + F_T(v_rel - (m . v_rel) m)   on x_p, and -f on x_q,
+    f = A_b (F_N(g, g') m + F_T(v_rel - (m . v_rel) m))   on x_p, and -f on x_q,
 
-with the law of :mod:`flexparcel.contact.law` (regularised friction, eq. 8: no stick model for
-these pairs). The force goes to the nodes by the closest points' weights, ``(1 - s) f``,
-``s f`` to p0, p1 and ``-(1 - t) f``, ``-t f`` to q0, q1; its derivative includes the change of
-those weights (``ds/dX``, ``dt/dX``), so the blocks are the exact derivatives of the force the
-kernel returns (checked against finite differences in ``tests/test_contact_tangents.py``).
+with the per-area law of :mod:`flexparcel.contact.law` (regularised friction, eq. 8: no stick model
+for these pairs). Line contact is per unit length, and a pair carries the area ``A_b = w L_b`` of
+its edge b (reference length ``L_b``, strip width ``w``): edges b (a packaging's element edges) that
+cross a line a (a deflector's tip) cross it one such length apart, and an edge b lying along a
+touches it over its length, so the force per length of the line does not depend on b's mesh. The
+force goes to the nodes by the closest points' weights, ``(1 - s) f``, ``s f`` to p0, p1 and ``-(1 -
+t) f``, ``-t f`` to q0, q1; its derivative includes the change of those weights (``ds/dX``,
+``dt/dX``), so the blocks are the exact derivatives of the force the kernel returns (checked against
+finite differences in ``tests/test_contact_tangents.py``).
 The closest points are Ericson's (*Real-Time Collision Detection*, 2005, section 5.1.9); the
 normal law is the paper's (eqs. 1-10) on the gap between the two segments' capsules.
 """
@@ -51,7 +55,7 @@ def edge_edge_sides(pairs, edges_a, edges_b, pos):
 
 
 @nb.njit(cache=True)
-def _edge_pair(x, v, n0, thickness, law, scale):
+def _edge_pair(x, v, n0, thickness, law, scale):  # scale: schedule factor x area [m^2]
     """One pair: nodes ``x``, ``v`` (4, 3) = [p0, p1, q0, q1]. Returns (g, node forces (4, 3),
     d forces / d x (12, 12), d forces / d v (12, 12), dF_N/dg, normal speed m . v_rel);
     g <= 0: no contact (zeros)."""
@@ -107,12 +111,13 @@ def _edge_pair(x, v, n0, thickness, law, scale):
 
 @nb.njit(cache=True)
 def edge_edge_forces(
-    pairs, sides, edges_a, edges_b, thickness, law, act, pos, vel, out_f, out_k, out_c,
-    out_dofs, mass, v_impact, out_w2,
+    pairs, sides, edges_a, edges_b, thickness, law, act, area_b, pos, vel, out_f, out_k,
+    out_c, out_dofs, mass, v_impact, out_w2,
 ):  # fmt: skip
     """Edge-to-edge contact of the candidate pairs (K, 2) ``[edge of a, edge of b]`` with
-    start directions ``sides`` (K, 3) (:func:`edge_edge_sides`); the law's force scaled by the
-    schedule factor ``act``. Forces go into ``out_f`` (n, 6); blocks (K, 12, 12) of
+    start directions ``sides`` (K, 3) (:func:`edge_edge_sides`); the per-area law's force
+    multiplied by the schedule factor ``act`` and the area ``area_b`` (Eb,) [m^2] of the
+    pair's edge b. Forces go into ``out_f`` (n, 6); blocks (K, 12, 12) of
     d[f_p0, f_p1, f_q0, f_q1] / d[x_p0, x_p1, x_q0, x_q1] (``out_k``) and / d[v...]
     (``out_c``), DOF numbers (K, 12) (-1 if not in contact). Returns (pairs in contact,
     deepest penetration [m], worst penetration / max)."""
@@ -133,7 +138,8 @@ def edge_edge_forces(
         for i in range(4):
             x[i] = pos[nodes[i]]
             v[i] = vel[nodes[i], :3]
-        g, fnode, fk, fc, dfn_dg, vn = _edge_pair(x, v, sides[k], thickness, law, act)
+        scale = act * area_b[pairs[k, 1]]
+        g, fnode, fk, fc, dfn_dg, vn = _edge_pair(x, v, sides[k], thickness, law, scale)
         if g <= 0.0:
             continue
         n_contact += 1
@@ -144,7 +150,7 @@ def edge_edge_forces(
         mb = 0.5 * (mass[nodes[2]] + mass[nodes[3]])
         mw = min(ma, mb) if ma > 0.0 and mb > 0.0 else max(ma, mb)
         if abs(vn) > v_impact and mw > 0.0:
-            out_w2[0] = max(out_w2[0], act * dfn_dg / mw)
+            out_w2[0] = max(out_w2[0], scale * dfn_dg / mw)
         for i in range(4):
             for a in range(3):
                 out_f[nodes[i], a] += fnode[i, a]
@@ -156,15 +162,20 @@ def edge_edge_forces(
 
 class EdgeEdgeSet(ContactSet):
     """Edge-to-edge line contact of edges a (Ea, 2) against edges b (Eb, 2), ``thickness``
-    [m] the sum of the two edges' radii (a deflector's tip against packaging element edges).
-    Candidates once per step; each pair keeps the direction it started the step in."""
+    [m] the sum of the two edges' radii (a deflector's tip against packaging element edges);
+    ``areas_b`` (Eb,): the area [m^2] a pair with edge b carries (its reference length times the
+    strip width). Candidates once per step; each pair keeps the direction it started the step
+    in."""
 
     kind = "edge_edge"
 
-    def __init__(self, edges_a, edges_b, thickness: float, law, schedule) -> None:
+    def __init__(self, edges_a, edges_b, thickness: float, law, schedule, areas_b) -> None:
         super().__init__(law, schedule)
         self.edges_a = np.ascontiguousarray(edges_a, dtype=np.int64)
         self.edges_b = np.ascontiguousarray(edges_b, dtype=np.int64)
+        self.area_b = np.ascontiguousarray(
+            np.broadcast_to(areas_b, self.edges_b.shape[:1]), dtype=float
+        )
         self.thickness = float(thickness)
         self.candidates = (np.zeros((0, 2), np.int64), np.zeros((0, 3)))
 
@@ -180,8 +191,8 @@ class EdgeEdgeSet(ContactSet):
         ek, ec, dofs = pair_blocks(pairs.shape[0], 12)
         n_contact, depth, ratio = edge_edge_forces(
             pairs, sides, self.edges_a, self.edges_b, self.thickness, ctx.laws[self.law_index],
-            ctx.factors[self.schedule_index], state.positions, state.velocities, out.forces,
-            ek, ec, dofs, ctx.node_mass, ctx.impact_speed, ctx.w2,
+            ctx.factors[self.schedule_index], self.area_b, state.positions, state.velocities,
+            out.forces, ek, ec, dofs, ctx.node_mass, ctx.impact_speed, ctx.w2,
         )  # fmt: skip
         out.coupled_blocks.append((ek, ec, dofs))
         out.merge(n_contact, depth, ratio)

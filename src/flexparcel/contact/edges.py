@@ -2,8 +2,10 @@
 
 Each edge (nodes i, j) is sampled at ``k`` Gauss-Lobatto-like stations xi = (m + 1/2)/k,
 m = 0..k-1 (midpoints of k equal parts), each carrying a contact point that moves with the edge,
-``p(xi) = (1 - xi) x_i + xi x_j``, with the contact law scaled by 1/k so that a uniformly
-pressed edge carries the law's force once. The point force f is shared by the two nodes as
+``p(xi) = (1 - xi) x_i + xi x_j``. The law is per unit area (:mod:`flexparcel.contact.law`);
+line contact is per unit length: each station carries the area ``w L / k`` (``L`` the edge's
+reference length, ``w`` the set's strip width), so a uniformly pressed edge carries ``w L`` times
+the law's force per area whatever the mesh. The point force f is shared by the two nodes as
 ``(1 - xi) f`` and ``xi f``; a belt's surface velocity enters the slip as for point contact.
 """
 
@@ -29,6 +31,7 @@ def edge_plane_forces(
     samples,
     law,
     act,
+    station_area,
     pos,
     vel,
     out_f,
@@ -39,16 +42,17 @@ def edge_plane_forces(
     v_impact,
     out_w2,
 ):
-    """Forces of all edges (E, 2) against one plane; blocks (E, 6, 6) of d[f_i, f_j] /
-    d[x_i, x_j] (``out_k``) and / d[v_i, v_j] (``out_c``), DOF numbers (E, 6).
+    """Forces of all edges (E, 2) against one plane, each station of edge e carrying the
+    area ``station_area[e]`` [m^2] times the schedule factor ``act``; blocks (E, 6, 6) of
+    d[f_i, f_j] / d[x_i, x_j] (``out_k``) and / d[v_i, v_j] (``out_c``), DOF numbers (E, 6).
     Returns (points in contact, deepest penetration [m], worst penetration / max)."""
     n = plane_normal
     n_contact = 0
     deepest = 0.0
     worst = 0.0
-    scale = act / samples
     proj = np.eye(3) - np.outer(n, n)
     for e in range(edges.shape[0]):
+        scale = act * station_area[e]
         i, j = edges[e, 0], edges[e, 1]
         for a in range(3):
             out_dofs[e, a] = 6 * i + a
@@ -92,13 +96,20 @@ def edge_plane_forces(
 
 class EdgePlaneSet(ContactSet):
     """Line contact of shell edges (E, 2) against one rigid plane, each edge sampled at
-    ``samples`` stations (an envelope standing on its glued border)."""
+    ``samples`` stations (an envelope standing on its glued border); ``station_areas`` (E,):
+    the area [m^2] each station of an edge carries (reference length / samples x strip width,
+    :func:`flexparcel.contact.tributary.station_areas`)."""
 
     kind = "edge_plane"
 
-    def __init__(self, edges, plane: int, radius: float, samples: int, law, schedule) -> None:
+    def __init__(
+        self, edges, plane: int, radius: float, samples: int, law, schedule, station_areas
+    ) -> None:
         super().__init__(law, schedule)
         self.edges = np.ascontiguousarray(edges, dtype=np.int64)
+        self.station_area = np.ascontiguousarray(
+            np.broadcast_to(station_areas, self.edges.shape[:1]), dtype=float
+        )
         self.plane = int(plane)
         self.radius = float(radius)
         self.samples = int(samples)
@@ -109,8 +120,8 @@ class EdgePlaneSet(ContactSet):
         n_contact, depth, ratio = edge_plane_forces(
             self.edges, m.plane_point[k], m.plane_normal[k], m.plane_velocity[k], self.radius,
             self.samples, ctx.laws[self.law_index], ctx.factors[self.schedule_index],
-            state.positions, state.velocities, out.forces, ek, ec, dofs, ctx.node_mass,
-            ctx.impact_speed, ctx.w2,
+            self.station_area, state.positions, state.velocities, out.forces, ek, ec, dofs,
+            ctx.node_mass, ctx.impact_speed, ctx.w2,
         )  # fmt: skip
         out.coupled_blocks.append((ek, ec, dofs))
         out.merge(n_contact, depth, ratio)

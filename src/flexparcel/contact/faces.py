@@ -11,7 +11,12 @@ With the closest point ``sum_i l_i x_i`` on the face (barycentric ``l``), the fa
 towards the node and the contact thickness ``h`` (half the two shells' thicknesses):
 
     s = h - n . (p - closest),  v_rel = v_p - sum_i l_i v_i,  s' = -n . v_rel,
-    f = F_N n + F_T on the node,  -l_i f on face vertex i.
+    f = A (F_N n + F_T) on the node,  -l_i f on face vertex i,
+
+with the per-area law of :mod:`flexparcel.contact.law` and ``A`` [m^2] the slave node's
+tributary area (reference geometry, :mod:`flexparcel.contact.tributary`). Line contact of edges
+against faces (:func:`edge_face_forces`) is per unit length: each station carries the area
+``w L / k`` of its edge (reference length ``L``, ``k`` stations, strip width ``w``).
 
 With a stick stiffness in the law, friction follows the stick model
 (:func:`flexparcel.contact.law.anchored_friction`): the tangential spring runs from the node to a
@@ -181,6 +186,7 @@ def face_contact_forces(
     thickness,
     law,
     act,
+    node_area,
     pos,
     vel,
     out_f,
@@ -196,8 +202,10 @@ def face_contact_forces(
     has_anchor_new,
     pos0,
 ):
-    """Forces of one contact set; blocks (K, 12, 12) of d[f_node, f_a, f_b, f_c]/d[x_node,
-    x_a, x_b, x_c] (``out_k``) and /d[v...] (``out_c``), DOF numbers (K, 12) (-1 if unused).
+    """Forces of one contact set, the law at node q of ``nodes`` multiplied by the schedule factor
+    ``act`` and its tributary area ``node_area[q]`` [m^2]; blocks (K, 12, 12) of d[f_node, f_a, f_b,
+    f_c]/d[x_node, x_a, x_b, x_c] (``out_k``) and /d[v...] (``out_c``), DOF numbers (K, 12) (-1 if
+    unused).
     Stick model (law with k_t > 0): ``anchor`` (N, 3) world anchors [m] per node of the set at
     the step's start, valid where ``has_anchor`` (N,) is nonzero; this evaluation's anchors go
     to ``anchor_new`` / ``has_anchor_new``; ``pos0`` (n, 3) are the step's start positions.
@@ -235,8 +243,9 @@ def face_contact_forces(
             a0 = anchor[q] if has_anchor[q] != 0.0 else pos0[node]
             m = plane_barycentric(a0, pos0[t[0]], pos0[t[1]], pos0[t[2]])
             c0 = a0 - m[0] * pos0[t[0]] - m[1] * pos0[t[1]] - m[2] * pos0[t[2]]
+        scale = act * node_area[q]
         s, f, bary, bk, bc, u_new, dfn_ds, vn = _point_face_pair(
-            pos[node], vel[node, :3], tx, tv, thickness, int(sides[k]), law, act, stick, m, c0
+            pos[node], vel[node, :3], tx, tv, thickness, int(sides[k]), law, scale, stick, m, c0
         )
         if s <= 0.0:
             continue
@@ -244,7 +253,7 @@ def face_contact_forces(
         deepest = max(deepest, s)
         worst = max(worst, s / law[P_MAX_PEN])
         if abs(vn) > v_impact and mass[node] > 0.0:
-            out_w2[0] = max(out_w2[0], act * dfn_ds / mass[node])
+            out_w2[0] = max(out_w2[0], scale * dfn_ds / mass[node])
         if stick:
             anchor_new[q] = pos[node] - u_new
             has_anchor_new[q] = 1.0
@@ -278,18 +287,19 @@ def edge_stations(edges, samples, pos):
 
 @nb.njit(cache=True)
 def edge_face_forces(
-    pairs, sides, edges, samples, tris, thickness, law, act, pos, vel, out_f, out_k, out_c,
-    out_dofs, mass, v_impact, out_w2,
+    pairs, sides, edges, samples, tris, thickness, law, act, station_area, pos, vel, out_f,
+    out_k, out_c, out_dofs, mass, v_impact, out_w2,
 ):  # fmt: skip
     """Line contact of shell edges (E, 2) against the triangles of one contact set.
 
     ``pairs`` (K, 2): candidate [station, triangle] (station ``e * samples + m`` of edge e, see
     :func:`edge_stations`), ``sides`` (K,) the side each station started on. Each station is a
-    contact point with the law scaled by 1/samples (regularised friction), against its deepest
-    candidate; its force f goes to the edge's nodes as ``(1 - xi) f``, ``xi f`` and to the
-    triangle as ``-l_v f``. Blocks (K, 15, 15) of d[f_i, f_j, f_a, f_b, f_c] / d[x_i, x_j, x_a,
-    x_b, x_c] (``out_k``) and / d[v...] (``out_c``), DOF numbers (K, 15) (-1 if unused).
-    Returns (stations in contact, deepest penetration [m], worst penetration / max)."""
+    contact point carrying the area ``station_area[e]`` [m^2] of its edge e times the schedule
+    factor ``act`` (regularised friction), against its deepest candidate; its force f goes to the
+    edge's nodes as ``(1 - xi) f``, ``xi f`` and to the triangle as ``-l_v f``. Blocks (K, 15, 15)
+    of d[f_i, f_j, f_a, f_b, f_c] / d[x_i, x_j, x_a, x_b, x_c] (``out_k``) and / d[v...]
+    (``out_c``), DOF numbers (K, 15) (-1 if unused). Returns (stations in contact, deepest
+    penetration [m], worst penetration / max)."""
     stations, _ = edge_stations(edges, samples, pos)
     out_dofs[:, :] = -1
     best = _best_candidates(pairs, sides, stations, tris, pos, thickness)
@@ -298,7 +308,6 @@ def edge_face_forces(
     n_contact = 0
     deepest = 0.0
     worst = 0.0
-    scale = act / samples
     tx = np.empty((3, 3))
     tv = np.empty((3, 3))
     zero = np.zeros(3)
@@ -310,6 +319,7 @@ def edge_face_forces(
         if k < 0:
             continue
         e = q // samples
+        scale = act * station_area[e]
         xi = (q % samples + 0.5) / samples
         i0, i1 = edges[e, 0], edges[e, 1]
         t = tris[pairs[k, 1]]
@@ -381,19 +391,22 @@ def _set_digest(kind: str, *arrays) -> str:
 
 class NodeFaceSet(ContactSet):
     """Node-to-face contact: nodes against triangles (shell faces or solid boundary faces),
-    both sides of a face free, contact distance ``thickness`` [m]. Candidates are found once
-    per step; each node keeps the side of its face it started the step on. History: the
-    stick model's world anchors per node."""
+    both sides of a face free, contact distance ``thickness`` [m]; ``areas`` (N,): each slave
+    node's tributary area [m^2] (reference geometry) by which the per-area law is multiplied.
+    Candidates are found once per step; each node keeps the side of its face it started the
+    step on. History: the stick model's world anchors per node."""
 
     kind = "node_face"
 
-    def __init__(self, nodes, triangles, thickness: float, law, schedule) -> None:
+    def __init__(self, nodes, triangles, thickness: float, law, schedule, areas) -> None:
         super().__init__(law, schedule)
         self.node = np.ascontiguousarray(nodes, dtype=np.int64)
         """Slave nodes, shape (N,)."""
         self.triangles = np.ascontiguousarray(triangles, dtype=np.int64)
         """Master faces, shape (M, 3)."""
         self.thickness = float(thickness)
+        self.area = np.ascontiguousarray(np.broadcast_to(areas, self.node.shape), dtype=float)
+        """Tributary area of each slave node [m^2], shape (N,)."""
         self.anchors = StickAnchors(self.node.size)
         self.candidates = (np.zeros((0, 2), np.int64), np.zeros(0))
 
@@ -408,9 +421,9 @@ class NodeFaceSet(ContactSet):
         fk, fc, dofs = pair_blocks(pairs.shape[0], 12)
         n_contact, depth, ratio = face_contact_forces(
             pairs, sides, self.node, self.triangles, self.thickness, ctx.laws[self.law_index],
-            ctx.factors[self.schedule_index], state.positions, state.velocities, out.forces,
-            fk, fc, dofs, ctx.node_mass, ctx.impact_speed, ctx.w2, *self.anchors.kernel_args(),
-            ctx.start.positions,
+            ctx.factors[self.schedule_index], self.area, state.positions, state.velocities,
+            out.forces, fk, fc, dofs, ctx.node_mass, ctx.impact_speed, ctx.w2,
+            *self.anchors.kernel_args(), ctx.start.positions,
         )  # fmt: skip
         out.coupled_blocks.append((fk, fc, dofs))
         out.merge(n_contact, depth, ratio)
@@ -436,13 +449,20 @@ class NodeFaceSet(ContactSet):
 
 class EdgeFaceSet(ContactSet):
     """Line contact of shell edges (E, 2), sampled at ``samples`` stations each, against
-    triangles (a packaging's border against another consignment)."""
+    triangles (a packaging's border against another consignment); ``station_areas`` (E,): the
+    area [m^2] each station of an edge carries
+    (:func:`flexparcel.contact.tributary.station_areas`)."""
 
     kind = "edge_face"
 
-    def __init__(self, edges, triangles, thickness: float, samples: int, law, schedule) -> None:
+    def __init__(
+        self, edges, triangles, thickness: float, samples: int, law, schedule, station_areas
+    ) -> None:
         super().__init__(law, schedule)
         self.edges = np.ascontiguousarray(edges, dtype=np.int64)
+        self.station_area = np.ascontiguousarray(
+            np.broadcast_to(station_areas, self.edges.shape[:1]), dtype=float
+        )
         self.triangles = np.ascontiguousarray(triangles, dtype=np.int64)
         self.thickness = float(thickness)
         self.samples = int(samples)
@@ -459,8 +479,9 @@ class EdgeFaceSet(ContactSet):
         ek, ec, dofs = pair_blocks(pairs.shape[0], 15)
         n_contact, depth, ratio = edge_face_forces(
             pairs, sides, self.edges, self.samples, self.triangles, self.thickness,
-            ctx.laws[self.law_index], ctx.factors[self.schedule_index], state.positions,
-            state.velocities, out.forces, ek, ec, dofs, ctx.node_mass, ctx.impact_speed, ctx.w2,
+            ctx.laws[self.law_index], ctx.factors[self.schedule_index], self.station_area,
+            state.positions, state.velocities, out.forces, ek, ec, dofs, ctx.node_mass,
+            ctx.impact_speed, ctx.w2,
         )  # fmt: skip
         out.coupled_blocks.append((ek, ec, dofs))
         out.merge(n_contact, depth, ratio)

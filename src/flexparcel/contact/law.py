@@ -20,6 +20,25 @@ always creeps).
 Everything is in SI units (m, kg, s, N). The paper prints RecurDyn's N-kg-mm-s values; convert them
 explicitly with :meth:`ContactLaw.from_paper_units`.
 
+Per unit area. RecurDyn applies c and d per contact point, so the paper's 649 N/mm belongs to its
+10 mm nodes (paper section 3.1: shell and solid elements of 10 mm edge length); at 25 mm the same
+c would be (25/10)**2 = 6.25 times softer per unit of surface. flexparcel's law is therefore per
+unit area of the slave surface: the spring coefficient c [N/m**(2 + m_s)], the damping d and the
+stick stiffness k_t [N/m**3] are multiplied, at each contact point, by the point's tributary area
+A [m**2] (a node: a third of each slave triangle around it, a quarter of each quad; see
+:mod:`flexparcel.contact.tributary`), so a point's force is A * F_N(s, s') with the law below.
+Line contact (a shell edge on a plane, a box or a face, and edge-to-edge contact) is per unit
+length: a station of tributary length l carries the area l * w, w the set's strip width (default
+:data:`REFERENCE_SPACING`), i.e. the per-length coefficients are c * w and d * w. Friction is
+proportional to F_N and follows; the stick model's k_t is per area as well, so the creep bound
+mu_s F_N / k_t of a point does not depend on its area. Areas and lengths are those of the
+reference (undeformed) geometry, computed once when the model is built.
+
+:meth:`ContactLaw.from_paper_units` converts the paper's per-point values through the reference
+node spacing it states (``reference_spacing_mm``, default 10 mm): c_area = c / (10 mm)**2, so
+649 N/mm = 6.49e9 N/m**3, and a 10 mm interior node gets 6.49e9 * 1e-4 = 649e3 N/m back. A law
+given per point in SI units is built with the explicitly named :meth:`ContactLaw.from_point_values`.
+
 Two layers:
 
 * :class:`ContactLaw`, a validated, frozen description of one contact pair's law (storage,
@@ -32,11 +51,11 @@ Two layers:
 Packed parameter layout (``float64`` array of length :data:`PACKED_SIZE`)::
 
     index  name         symbol   unit                         note
-    0      P_C          c        N/m**m_s                     spring stiffness
+    0      P_C          c        N/m**(2+m_s)                 spring stiffness per area
     1      P_M_S        m_s      -                            stiffness exponent
     2      P_OPTION     -        -                            0 = "step", 1 = "indentation"
-    3      P_D          d        N s/m ("step"),              damping coefficient
-                                 N (s/m)**m_d / m**m_i ("indentation")
+    3      P_D          d        N s/m**3 ("step"),           damping coefficient per area
+                                 N (s/m)**m_d / m**(2+m_i) ("indentation")
     4      P_S_MAX      s_max    m                            full-damping depth ("step")
     5      P_M_D        m_d      -                            damping exponent ("indentation")
     6      P_M_I        m_i      -                            indentation exponent ("indentation")
@@ -46,9 +65,13 @@ Packed parameter layout (``float64`` array of length :data:`PACKED_SIZE`)::
     10     P_V_S        v_s      m/s                          static threshold speed
     11     P_V_D        v_d      m/s                          dynamic threshold speed
     12     P_MAX_PEN    -        m                            max penetration (inf if none)
-    13     P_K_T        k_t      N/m                          stick stiffness (0 if no stick model)
+    13     P_K_T        k_t      N/m**3                       stick stiffness per area (0: none)
     14     P_SLIP_TANGENT -      -                            Newton tangent while slipping:
                                                               0 = consistent, 1 = stick (-k_t I)
+
+The kernels take these per-area values and a per-point scale (schedule factor times tributary
+area [m**2]) from the contact set; the scalar kernels below are written per point (c in N/m**m_s)
+and are called with the per-area values, their forces then multiplied by the area.
 
 ``P_SLIP_TANGENT`` is a solver choice, not physics: :meth:`ContactLaw.packed` writes 0 and the
 integrator sets it (``IntegratorOptions.friction_tangent``). Forces never depend on it.
@@ -87,6 +110,8 @@ __all__ = [
     "P_MAX_PEN",
     "P_K_T",
     "P_SLIP_TANGENT",
+    "REFERENCE_SPACING",
+    "REFERENCE_AREA",
     "step",
     "step_dx",
     "step5",
@@ -129,6 +154,16 @@ PACKED_SIZE = PACKED_LAW_SIZE  # the ground sizes empty law tables with it
 # mm -> m. RecurDyn's N-kg-mm-s unit set differs from SI only in length.
 _MM = 1.0e-3
 
+REFERENCE_SPACING = 10.0 * _MM
+"""The paper's node spacing [m]: RecurDyn's 10 mm shell and solid elements (paper section 3.1),
+to which its per-point contact values belong; the default of
+:meth:`ContactLaw.from_paper_units` and the default strip width of line contact."""
+
+REFERENCE_AREA = REFERENCE_SPACING**2
+"""Tributary area [m**2] of an interior node of a 10 mm mesh, 1e-4 m**2: the area over which a
+paper per-point value is spread, and the area of a contact point without a surface of its own
+(a rigid box's corner, see :meth:`flexparcel.builder.ModelBuilder.add_contact`)."""
+
 
 # --------------------------------------------------------------------------------------------------
 # Parameter object
@@ -141,15 +176,23 @@ def _number(name: str, value: Any) -> float:
 
 @dataclass(frozen=True)
 class ContactLaw:
-    """The contact law of one contact pair (paper eqs. 1-10), SI units, validated on creation.
+    """The contact law of one contact pair (paper eqs. 1-10), SI units per unit area of the
+    slave surface, validated on creation.
+
+    Each contact point multiplies c, d and k_t by its tributary area A [m**2] (reference
+    geometry; per unit length times the strip width for line contact, see the module
+    docstring). Build it from the paper's per-point values with :meth:`from_paper_units`
+    (through a stated reference spacing), from per-point SI values with
+    :meth:`from_point_values`, or directly from per-area SI values.
 
     Attributes:
-        stiffness: spring coefficient c [N/m**m_s], > 0 (eq. 2). Its unit depends on m_s: with
-            m_s = 1 it is N/m.
+        stiffness: spring coefficient c per unit area [N/m**(2 + m_s)], > 0 (eq. 2): a point of
+            area A has the spring A * c * s**m_s. With m_s = 1 it is N/m**3 (the paper's
+            649 N/mm at its 10 mm nodes is 6.49e9 N/m**3).
         stiffness_exponent: m_s [-], >= 1 (eq. 2); 1 is a linear spring. Values below 1 would give
             an infinite tangent at first touch and are rejected.
-        damping: d, >= 0 (eqs. 3, 4). Option "step": [N s/m]. Option "indentation":
-            [N (s/m)**m_d / m**m_i] (N s/m when m_d = 1 and m_i = 0).
+        damping: d per unit area, >= 0 (eqs. 3, 4). Option "step": [N s/m**3]. Option
+            "indentation": [N (s/m)**m_d / m**(2 + m_i)] (N s/m**3 when m_d = 1 and m_i = 0).
         damping_option: "step" (eq. 3: damping coefficient ramps by STEP from 0 at s = 0 to d at
             s = s_max) or "indentation" (eq. 4).
         damping_depth: s_max [m], > 0: penetration at which option "step" reaches the full damping
@@ -167,11 +210,12 @@ class ContactLaw:
         v_dynamic: v_d [m/s], > v_s: slip speed from which mu = mu_d (eq. 10). Default 1.5 mm/s.
         max_penetration: [m], > 0, or None. Not part of the force law: callers flag or stop a run
             when a contact penetrates deeper (see :meth:`penetration_exceeded`).
-        stick_stiffness: k_t [N/m], > 0, or None. When given, callers use the stick model
-            (:func:`stick_friction` on planes, :func:`anchored_friction` on boxes and faces)
-            instead of the regularised law (:func:`friction_force`): a tangential spring of
-            stiffness k_t whose force is capped at mu_s * F_N while sticking; a resting contact
-            then creeps by at most mu_s * F_N / k_t. See :meth:`with_stick_model`.
+        stick_stiffness: k_t per unit area [N/m**3], > 0, or None. When given, callers use the
+            stick model (:func:`stick_friction` on planes, :func:`anchored_friction` on boxes and
+            faces) instead of the regularised law (:func:`friction_force`): a tangential spring of
+            stiffness A * k_t whose force is capped at mu_s * F_N while sticking; a resting
+            contact then creeps by at most mu_s * F_N / (A k_t), which does not depend on the
+            point's area A since F_N is proportional to it. See :meth:`with_stick_model`.
     """
 
     stiffness: float
@@ -196,9 +240,9 @@ class ContactLaw:
             object.__setattr__(self, name, value)
 
         checks = {
-            "stiffness": ("c", "> 0 N/m**m_s", lambda v: v > 0.0),
+            "stiffness": ("c", "> 0 N/m**(2+m_s)", lambda v: v > 0.0),
             "stiffness_exponent": ("m_s", ">= 1", lambda v: v >= 1.0),
-            "damping": ("d", ">= 0 (N s/m for option 'step')", lambda v: v >= 0.0),
+            "damping": ("d", ">= 0 (N s/m**3 for option 'step')", lambda v: v >= 0.0),
             "damping_depth": ("s_max", "> 0 m", lambda v: v > 0.0),
             "damping_exponent": ("m_d", "> 0", lambda v: v > 0.0),
             "indentation_exponent": ("m_i", ">= 0", lambda v: v >= 0.0),
@@ -226,7 +270,7 @@ class ContactLaw:
             )
         for name, symbol, unit in (
             ("max_penetration", "max_penetration", "m"),
-            ("stick_stiffness", "k_t", "N/m"),
+            ("stick_stiffness", "k_t", "N/m**3"),
         ):
             raw = getattr(self, name)
             if raw is None:
@@ -239,13 +283,14 @@ class ContactLaw:
             put(name, v)
 
     def with_stick_model(self, stick_stiffness: float | None = None) -> ContactLaw:
-        """This law with the stick model on: k_t = ``stick_stiffness`` [N/m], by default the
-        normal stiffness c of a linear law (m_s = 1), i.e. a tangential penalty as stiff as the
-        normal one, whose slip before breaking loose is mu_s times the normal penetration."""
+        """This law with the stick model on: k_t = ``stick_stiffness`` [N/m**3, per area], by
+        default the normal stiffness c of a linear law (m_s = 1), i.e. a tangential penalty as
+        stiff as the normal one, whose slip before breaking loose is mu_s times the normal
+        penetration."""
         if stick_stiffness is None:
             if self.stiffness_exponent != 1.0:
                 raise ValueError(
-                    "ContactLaw.with_stick_model: give stick_stiffness [N/m] for a nonlinear "
+                    "ContactLaw.with_stick_model: give stick_stiffness [N/m**3] for a nonlinear "
                     f"spring (stiffness_exponent = {self.stiffness_exponent!r})"
                 )
             stick_stiffness = self.stiffness
@@ -271,21 +316,34 @@ class ContactLaw:
         v_dynamic_mm_s: float = 1.5,
         max_penetration_mm: float | None = None,
         stick_stiffness_N_per_mm: float | None = None,
+        reference_spacing_mm: float = 10.0,
     ) -> ContactLaw:
-        """Build a law from RecurDyn's N-kg-mm-s values as printed in the paper (e.g. Table 6).
+        """Build a per-area law from RecurDyn's per-point N-kg-mm-s values as printed in the
+        paper (e.g. Table 6), through the node spacing they belong to.
 
-        Only lengths differ from SI (1 mm = 1e-3 m), so each coefficient is multiplied by 1000 per
-        length unit in its denominator:
+        RecurDyn applies c and d per contact point, and the paper's values belong to its 10 mm
+        nodes (paper section 3.1), i.e. to the tributary area ``reference_spacing_mm**2``. Two
+        explicit steps:
 
-        * c [N/mm**m_s] -> [N/m**m_s]: x 1000**m_s (x 1000 for the linear law: 611 N/mm =
-          611e3 N/m);
-        * d, option "step" [N s/mm] -> [N s/m]: x 1000;
-          option "indentation" [N (s/mm)**m_d / mm**m_i] -> SI: x 1000**(m_d + m_i)
-          (x 1000 for m_d = 1, m_i = 0; with the default m_i = 1 the paper-unit value is in
-          N s/mm**2 and is multiplied by 1e6 -- pass indentation_exponent=0 for plain N s/mm);
-        * lengths s_max, max_penetration [mm] -> [m]: x 1e-3; speeds v_s, v_d [mm/s] -> [m/s]:
-          x 1e-3; stick stiffness k_t [N/mm] -> [N/m]: x 1000.
+        1. units: only lengths differ from SI (1 mm = 1e-3 m), so each coefficient is multiplied
+           by 1000 per length unit in its denominator: c [N/mm**m_s] x 1000**m_s (611 N/mm =
+           611e3 N/m); d, option "step" [N s/mm] x 1000; option "indentation"
+           [N (s/mm)**m_d / mm**m_i] x 1000**(m_d + m_i) (x 1000 for m_d = 1, m_i = 0; with the
+           default m_i = 1 the paper-unit value is in N s/mm**2 and is multiplied by 1e6 -- pass
+           indentation_exponent=0 for plain N s/mm); stick stiffness k_t [N/mm] x 1000; lengths
+           s_max, max_penetration [mm] x 1e-3; speeds v_s, v_d [mm/s] x 1e-3;
+        2. per point -> per area: c, d and k_t are divided by the reference area
+           ``(reference_spacing_mm * 1e-3)**2`` [m**2]: c_area = c / (10 mm)**2, so 649 N/mm =
+           649e3 N/m / 1e-4 m**2 = 6.49e9 N/m**3, and an interior node of a 10 mm mesh
+           (area 1e-4 m**2) has the paper's 649 N/mm again.
         """
+        spacing = _number("reference_spacing", reference_spacing_mm) * _MM
+        if not spacing > 0.0:
+            raise ValueError(
+                f"ContactLaw.from_paper_units: reference_spacing_mm must be > 0, "
+                f"got {reference_spacing_mm!r}"
+            )
+        area = spacing * spacing
         c_exp = _number("stiffness_exponent", stiffness_exponent)
         if damping_option == "indentation":
             d_exp = _number("damping_exponent", damping_exponent) + _number(
@@ -294,9 +352,9 @@ class ContactLaw:
         else:
             d_exp = 1.0
         return cls(
-            stiffness=_number("stiffness", c_N_per_mm) * (1.0 / _MM) ** c_exp,
+            stiffness=_number("stiffness", c_N_per_mm) * (1.0 / _MM) ** c_exp / area,
             stiffness_exponent=stiffness_exponent,
-            damping=_number("damping", d_Ns_per_mm) * (1.0 / _MM) ** d_exp,
+            damping=_number("damping", d_Ns_per_mm) * (1.0 / _MM) ** d_exp / area,
             damping_option=damping_option,
             damping_depth=_number("damping_depth", s_max_mm) * _MM,
             damping_exponent=damping_exponent,
@@ -314,19 +372,21 @@ class ContactLaw:
             stick_stiffness=(
                 None
                 if stick_stiffness_N_per_mm is None
-                else _number("stick_stiffness", stick_stiffness_N_per_mm) / _MM
+                else _number("stick_stiffness", stick_stiffness_N_per_mm) / _MM / area
             ),
         )
 
-    def to_paper_units(self) -> dict[str, Any]:
-        """The keyword arguments of :meth:`from_paper_units` that rebuild this law (N-kg-mm-s)."""
+    def to_paper_units(self, reference_spacing_mm: float = 10.0) -> dict[str, Any]:
+        """The keyword arguments of :meth:`from_paper_units` that rebuild this law (N-kg-mm-s,
+        per point of a mesh of ``reference_spacing_mm`` spacing, which is among them)."""
+        area = (reference_spacing_mm * _MM) ** 2
         if self.damping_option == "indentation":
             d_exp = self.damping_exponent + self.indentation_exponent
         else:
             d_exp = 1.0
         return {
-            "c_N_per_mm": self.stiffness * _MM**self.stiffness_exponent,
-            "d_Ns_per_mm": self.damping * _MM**d_exp,
+            "c_N_per_mm": self.stiffness * area * _MM**self.stiffness_exponent,
+            "d_Ns_per_mm": self.damping * area * _MM**d_exp,
             "s_max_mm": self.damping_depth / _MM,
             "stiffness_exponent": self.stiffness_exponent,
             "damping_option": self.damping_option,
@@ -341,9 +401,42 @@ class ContactLaw:
                 None if self.max_penetration is None else self.max_penetration / _MM
             ),
             "stick_stiffness_N_per_mm": (
-                None if self.stick_stiffness is None else self.stick_stiffness * _MM
+                None if self.stick_stiffness is None else self.stick_stiffness * area * _MM
             ),
+            "reference_spacing_mm": float(reference_spacing_mm),
         }
+
+    @classmethod
+    def from_point_values(
+        cls,
+        point_area: float,
+        *,
+        stiffness: float,
+        damping: float = 0.0,
+        stick_stiffness: float | None = None,
+        **other: Any,
+    ) -> ContactLaw:
+        """The per-area law whose contact point of tributary area ``point_area`` [m**2] has the
+        per-point SI values ``stiffness`` c [N/m**m_s], ``damping`` d [N s/m for option "step",
+        N (s/m)**m_d / m**m_i for "indentation"] and ``stick_stiffness`` k_t [N/m]: each is
+        divided by ``point_area``. RecurDyn's per-point semantics, explicitly: at another area
+        a point gets proportionally more or less. ``other``: the remaining fields of the law,
+        as for the constructor. E.g. ``from_point_values(REFERENCE_AREA, stiffness=1e5)`` is
+        1e5 N/m at a 10 mm node and at a rigid box's corner (whose default area is
+        :data:`REFERENCE_AREA`)."""
+        a = _number("point_area", point_area)
+        if not a > 0.0:
+            raise ValueError(
+                f"ContactLaw.from_point_values: point_area must be > 0 m**2, got {a!r}"
+            )
+        return cls(
+            stiffness=_number("stiffness", stiffness) / a,
+            damping=_number("damping", damping) / a,
+            stick_stiffness=(
+                None if stick_stiffness is None else _number("stick_stiffness", stick_stiffness) / a
+            ),
+            **other,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """Plain, JSON-able dict of the SI field values (None for absent options)."""

@@ -12,8 +12,10 @@ normal ``n`` through ``p0`` (pointing out of the solid side):
     its velocity vc = v + w x a - v_plane   (v_plane: the surface velocity of a belt)
     rate         s' = -n . vc,   slip  vt = vc - (n . vc) n
 
-The law (:mod:`flexparcel.contact.law`, paper eqs. 1-10) gives F_N(s, s') and the friction
-F_T(vt, F_N); the point force ``f = F_N n + F_T`` acts at the arm, i.e. ``[f, a x f]`` on the
+The law (:mod:`flexparcel.contact.law`, paper eqs. 1-10, per unit area) gives F_N(s, s') and the
+friction F_T(vt, F_N) per unit area; each point carries its tributary area ``A`` [m^2] (a shell
+node's share of the surface around it, a box corner's stated area), and the point force
+``f = A (F_N n + F_T)`` acts at the arm, i.e. ``[f, a x f]`` on the
 node. The kernel also returns the derivatives of that generalised force with respect to the
 node's position/spin and velocity/angular velocity, for the Newton tangent (terms of order
 w x (dtheta x rho) in the rate are left out).
@@ -46,6 +48,7 @@ def plane_contact_forces(
     cp_plane,
     cp_law,
     cp_active,
+    cp_area,
     plane_point,
     plane_normal,
     plane_velocity,
@@ -68,6 +71,7 @@ def plane_contact_forces(
     """Generalised contact forces of all points.
 
     Args: point arrays (P,) / (P, 3); ``cp_active`` (P,) schedule factors in [0, 1];
+    ``cp_area`` (P,) tributary areas [m^2] (the law's per-area values times these);
     planes (k, 3); ``laws`` (L, PACKED_SIZE); state ``pos`` (n, 3), ``rot`` (n, 3, 3),
     ``vel`` (n, 6).
     Outputs (accumulated): ``out_f`` (n, 6) forces [N, N m]; ``out_dq`` (P, 6, 6) and
@@ -80,7 +84,7 @@ def plane_contact_forces(
     deepest_pt = -1
     worst_ratio = 0.0
     for q in range(cp_node.shape[0]):
-        act = cp_active[q]
+        act = cp_active[q] * cp_area[q]
         if act == 0.0:
             continue
         node = cp_node[q]
@@ -117,6 +121,7 @@ def plane_contact_forces(
         dft_du = np.zeros((3, 3))
         if stick:
             # stick model: elastic tangential spring with a slip limit, history u_el carried
+            # (per area: spring A k_t against the limit mu_s A F_N, so u_el does not see A)
             # from the last accepted step; the tangential displacement of the contact point
             # relative to the (moving) surface over this step drives it
             du = x + rho - pos0[node] - rot0[node] @ cp_offset[q] - plane_velocity[pl] * h
@@ -177,12 +182,15 @@ class PlanePointSet(ContactSet):
     """Contact points on one rigid plane: shell nodes with a contact radius, or the corners of
     a rigid body's rounded box (their offsets in the body frame, the edge radius as radius).
 
+    ``areas`` (P,): each point's tributary area [m^2] of the reference geometry, by which the
+    per-area law is multiplied (:mod:`flexparcel.contact.tributary`).
+
     History: the stick model's elastic slip ``u_el`` (P, 3) per point [m].
     """
 
     kind = "plane"
 
-    def __init__(self, nodes, offsets, radii, plane: int, law, schedule) -> None:
+    def __init__(self, nodes, offsets, radii, plane: int, law, schedule, areas) -> None:
         super().__init__(law, schedule)
         self.node = np.ascontiguousarray(nodes, dtype=np.int64)
         """Node of each contact point, shape (P,)."""
@@ -191,6 +199,8 @@ class PlanePointSet(ContactSet):
         self.radius = np.ascontiguousarray(radii, dtype=float)
         """Radius of each point [m], shape (P,)."""
         self.plane = int(plane)
+        self.area = np.ascontiguousarray(np.broadcast_to(areas, self.node.shape), dtype=float)
+        """Tributary area of each point [m^2], shape (P,)."""
         self.u_el = np.zeros((self.node.size, 3))
         self.u_el_trial = self.u_el.copy()
 
@@ -201,7 +211,7 @@ class PlanePointSet(ContactSet):
         dv = np.zeros((p, 6, 6))
         n_contact, depth, point, ratio = plane_contact_forces(
             self.node, self.offset, self.radius, np.full(p, self.plane), np.zeros(p, np.int64),
-            np.full(p, ctx.factors[self.schedule_index]), m.plane_point, m.plane_normal,
+            np.full(p, ctx.factors[self.schedule_index]), self.area, m.plane_point, m.plane_normal,
             m.plane_velocity, ctx.laws[self.law_index : self.law_index + 1], state.positions,
             state.rotations, state.velocities, out.forces, dq, dv, ctx.node_mass,
             ctx.impact_speed, ctx.w2, self.u_el, self.u_el_trial, ctx.step,

@@ -105,16 +105,18 @@ def parse_assignments(items: Sequence[str] | Mapping[str, float] | None) -> dict
 
 
 def _laws(p: Mapping[str, float], stick_model: bool) -> tuple[ContactLaw, ContactLaw]:
+    # Table 6's values are RecurDyn's per-point values of the paper's 10 mm nodes: per unit
+    # area they are divided by (10 mm)^2 (the law is per area, see flexparcel.contact.law)
     mu = FRICTION_PACKAGING
     content = ContactLaw.from_paper_units(
         c_N_per_mm=p["contact_stiffness_packaging_content"],
         d_Ns_per_mm=p["contact_damping_packaging_content"],
-        s_max_mm=S_MAX_MM, mu_static=mu, mu_dynamic=mu,
+        s_max_mm=S_MAX_MM, mu_static=mu, mu_dynamic=mu, reference_spacing_mm=10.0,
     )  # fmt: skip
     ground = ContactLaw.from_paper_units(
         c_N_per_mm=p["contact_stiffness_packaging_ground"],
         d_Ns_per_mm=p["contact_damping_packaging_ground"],
-        s_max_mm=S_MAX_MM, mu_static=mu, mu_dynamic=mu,
+        s_max_mm=S_MAX_MM, mu_static=mu, mu_dynamic=mu, reference_spacing_mm=10.0,
     )  # fmt: skip
     if stick_model:
         return content.with_stick_model(), ground.with_stick_model()

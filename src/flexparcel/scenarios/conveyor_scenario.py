@@ -78,12 +78,14 @@ on that many processes (the default 2: the CI-class machine's two cores)."""
 def content_law_for(stiffness_n_per_mm: float | None, label: str = "content_stiffness"):
     """The packaging-content contact law with stiffness c = ``stiffness_n_per_mm`` [N/mm] in
     [1, 1e4] (stick stiffness k_t = c, damping kept), or None (Table 6's law, as assembled)
-    when not given. ``label`` names the value in the error."""
+    when not given. ``label`` names the value in the error. Like Table 6's 649, the value is
+    per point of the paper's 10 mm nodes: the per-area law gets c / (10 mm)^2 [N/m^3]."""
     if stiffness_n_per_mm is None:
         return None
     from flexparcel.consignments.build import default_packaging_content_law
+    from flexparcel.contact.law import REFERENCE_AREA
 
-    c = CONVEYOR_PARAMETERS[3].check(stiffness_n_per_mm, label) * 1e3
+    c = CONVEYOR_PARAMETERS[3].check(stiffness_n_per_mm, label) * 1e3 / REFERENCE_AREA
     return replace(default_packaging_content_law(), stiffness=c, stick_stiffness=c)
 
 

@@ -122,7 +122,8 @@ GAP_ABOVE_BELT = 1e-3
 """Default start height of the lowest packaging contact surface above the belt [m]."""
 CONSIGNMENT_FRICTION = 0.3
 """Packaging-packaging friction [-] (not given in the paper; as its packaging-content 0.3)."""
-_GROUND_LAW = dict(c_N_per_mm=611.0, d_Ns_per_mm=0.591, s_max_mm=0.1)  # paper Table 6
+# paper Table 6, per point of its 10 mm nodes: per unit area c = 611 N/mm / (10 mm)^2
+_GROUND_LAW = dict(c_N_per_mm=611.0, d_Ns_per_mm=0.591, s_max_mm=0.1, reference_spacing_mm=10.0)
 
 
 @dataclass(frozen=True)

@@ -60,12 +60,15 @@ def envelope_drop_model(case: EnvelopeDrop | None = None) -> tuple[Model, int, n
         (0.0, 0.0, z0 + c.thickness / 2 + c.content[2] / 2 + 0.5e-3),
     )
     plate = b.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    # Table 6's per-point values at the paper's 10 mm nodes, per unit area (/ (10 mm)^2)
     content_law = ContactLaw.from_paper_units(
-        c_N_per_mm=649, d_Ns_per_mm=0.579, s_max_mm=0.1, mu_static=0.3, mu_dynamic=0.3
-    )
+        c_N_per_mm=649, d_Ns_per_mm=0.579, s_max_mm=0.1, mu_static=0.3, mu_dynamic=0.3,
+        reference_spacing_mm=10.0,
+    )  # fmt: skip
     ground_law = ContactLaw.from_paper_units(
-        c_N_per_mm=611, d_Ns_per_mm=0.591, s_max_mm=0.1, mu_static=0.3, mu_dynamic=0.3
-    )
+        c_N_per_mm=611, d_Ns_per_mm=0.591, s_max_mm=0.1, mu_static=0.3, mu_dynamic=0.3,
+        reference_spacing_mm=10.0,
+    )  # fmt: skip
     if c.stick_model:
         content_law, ground_law = content_law.with_stick_model(), ground_law.with_stick_model()
     b.add_body_contact(env, box, content_law, radius=c.thickness / 2)
