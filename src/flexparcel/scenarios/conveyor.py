@@ -395,11 +395,10 @@ def add_deflector_contact(
     shell's element edges (edge-to-edge, the same thickness, the law once per crossing pair,
     regularised friction: :mod:`flexparcel.contact.edge_edge`). Node-to-face contact alone
     lets a face pressed on the tip pass through it between its nodes, and the tip's stations
-    let an element edge wrapped round the tip pass between them (in the paper scene's 2 s
-    runs of sessions 15 and 16, packaging edges came up to 1.2 mm inside the contact
-    thickness there); in session 18's run a film hanging over the belt edge at the second
-    deflector's root wrapped the sheet's outer end, and an element cut through the sheet
-    there."""
+    let an element edge wrapped round the tip pass between them (in 2 s runs of the paper
+    scene without them, packaging edges came up to 1.2 mm inside the contact thickness
+    there); in one such run a film hanging over the belt edge at the second deflector's root
+    wrapped the sheet's outer end, and an element cut through the sheet there."""
     thick = parts.deflector_contact_thickness(shell_half_thickness)
     for verts, tip, end, g in zip(
         parts.deflector_vertices,
