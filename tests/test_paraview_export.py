@@ -259,3 +259,27 @@ def test_node_forces_add_up_to_the_consignment_deflector_force(conveyor_dir):
     assert total["a"][-1] > 0.0 and np.all(total["a"][:-1] == 0.0)
     assert (node[-1, c.packaging] @ g.normal).sum() == pytest.approx(total["a"][-1])
     assert not node[-1, cm.consignments["b"].packaging].any()
+
+
+def test_viewer_opens_conveyor_results_written_without_parts(conveyor_dir, tmp_path):
+    # results.npz of a run from before the parts were recorded: the consignments come from
+    # the node lists of its metadata, the other nodes' cells are the deflectors
+    import json
+
+    pytest.importorskip("plotly")
+    from flexparcel.viz.viewer import load_scene
+
+    out, _, _ = conveyor_dir
+    with np.load(out / "results.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    meta = json.loads(str(arrays["meta_json"]))
+    del meta["parts"]
+    arrays["meta_json"] = np.array(json.dumps(meta))
+    old = tmp_path / "old"
+    old.mkdir()
+    np.savez_compressed(old / "results.npz", **arrays)
+    scene = load_scene(old)
+    assert scene.consignments == ["a", "b", "c", "d"]
+    assert [t["name"] for t in scene.static] == ["belt (1.6 m/s)", "deflectors"]
+    assert [m.name for m in scene.dynamic] == ["packaging"]  # rigid contents unknown
+    assert scene.unavailable["contact_force"].startswith("not in these results")

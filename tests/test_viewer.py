@@ -212,6 +212,15 @@ def test_browser_renders_the_scene(drop_dir, tmp_path):
     assert 'data-rendered="yes"' in tag, f"scene not drawn: {tag}"
     assert 'data-frame="0"' in tag  # the page's script drew frame 0 itself
     assert "<canvas" in dom.stdout  # plotly's WebGL scene
+    # opened at another frame and field (per-cell strain, the categorical consignment colours)
+    for anchor, frame, field in (("#frame=last&field=strain", k - 1, "strain"),
+                                 ("#frame=2&field=consignment", 2, "consignment")):  # fmt: skip
+        dom = subprocess.run([CHROMIUM, *BROWSER_FLAGS, f"--user-data-dir={tmp_path / 'p3'}",
+                              "--dump-dom", url + anchor], capture_output=True, text=True,
+                             timeout=180, env=home)  # fmt: skip
+        tag = re.search(r'<div id="flexparcel-viewer"[^>]*>', dom.stdout).group(0)
+        assert 'data-rendered="yes"' in tag and f'data-frame="{frame}"' in tag, tag
+        assert f'data-field="{field}"' in tag, tag
     shot = tmp_path / "view.png"
     run = subprocess.run([CHROMIUM, *BROWSER_FLAGS, f"--user-data-dir={tmp_path / 'p2'}",
                           f"--screenshot={shot}", "--window-size=1200,800", url],

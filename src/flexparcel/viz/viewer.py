@@ -18,18 +18,22 @@ writers of :mod:`flexparcel.viz.scenario_pictures` that the command line passes 
 scenario's ``write``, after every ``flexparcel run`` and ``flexparcel demo`` run (the
 scenarios do not import this module: the caller hands it in, like the pictures).
 
-Size. The page is the plotly.js bundle (4.8 MB, plotly 7.1) plus the frames: node positions
-quantised to 16 bits over the scene's bounding box (a 3 m belt: 0.05 mm steps) and each
-field to 8 bits over its range, base64-encoded, so about ``4/3 (6 + F) V + 4/3 F C`` bytes a
-frame for V vertices, C cells and F animated fields (F = 4: displacement, speed, strain,
-plus the contact force where there is one): about 17 bytes per vertex and frame. Measured:
-the small example consignment (120 x 90 mm, 20 mm shells, 70 packaging nodes plus a
-384-vertex rounded box), swing of 0.05 s, 11 frames: 5.0 MB; the same over 281 frames
-(1.4 s): 6.6 MB (+5.7 kB a frame); the four paper consignments at 25 mm on the conveyor
-(2,390 vertices), 21 frames: 5.4 MB (+38 kB a frame, so 2 s at 10 ms, 201 frames, about
-12 MB). Size grows linearly with frames times vertices. A page that would exceed the budget
-(``max_mb``, default 20 MB) shows every n-th frame instead (the first and last always), and
-says so in its title; ``--max-frames`` caps the count further.
+Size. The page is the plotly.js bundle (4.8 MB, plotly 7.1) plus the frames: vertex
+positions quantised to 16 bits over the moving parts' bounding box (3 m of travel: 0.05 mm
+steps) and each animated field to 8 bits over its range, base64-encoded: about
+``4/3 (6 V + F_v V + F_c C)`` bytes a frame for V vertices, C triangles, F_v vertex fields
+(displacement, speed, and the contact force where there is one) and F_c cell fields (the
+strain), some 13 bytes per vertex and frame. Measured (plotly 7.1): the small example
+consignment (50 packaging vertices and its 216-vertex rounded box), drop test, 11 frames:
+4.9 MB, +3.4 kB a frame; the four paper consignments at 25 mm on the conveyor (1,893
+vertices, 3,368 triangles; the built scene carried along the belt, as the size does not
+depend on the motion), 21 frames: 5.5 MB, 201 frames (2 s at 10 ms): 9.9 MB, +24.7 kB a
+frame. Size grows linearly with frames times vertices; the same scene at 10 mm (about six
+times the vertices) would take some 150 kB a frame. A page that would exceed the budget
+(``max_mb``, default 20 MB) shows every n-th frame instead (the first and last always) and
+says so in its title (the conveyor of four over 1,001 frames: 501 shown, one in 2,
+17.3 MB); ``max_frames`` caps the count further. ``view.html#frame=last&field=strain``
+opens at that frame and field.
 
 The frame count is exposed for scripts and tests: ``data-frame-count`` (frames shown),
 ``data-total-frames`` (frames in the results) and ``data-rendered`` (``"yes"`` once the
@@ -43,6 +47,7 @@ import base64
 import html
 import json
 import math
+import warnings
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -625,6 +630,7 @@ _SCRIPT = r"""
         label.textContent = "t = " + data.time[k].toFixed(4) + " s (frame " + (k + 1) +
           " of " + data.frames.length + ")";
         root.setAttribute("data-frame", String(k));
+        root.setAttribute("data-field", state.field);
         window.flexparcelView.frame = k;
         window.flexparcelView.field = state.field;
       });
@@ -719,7 +725,17 @@ def write_viewer(
 def viewer_writer(result: Any, out: Path) -> dict[str, Path]:
     """A picture writer (:data:`~flexparcel.scenarios.base.PictureWriter`) that writes
     ``out/view.html`` from the results the scenario's ``write`` has just saved there;
-    nothing for a scenario that saved no ``results.npz``."""
+    nothing for a scenario that saved no ``results.npz``, and a warning instead of the page
+    where plotly is not installed."""
     if not (Path(out) / "results.npz").is_file():
+        return {}
+    try:
+        import plotly  # noqa: F401
+    except ImportError:  # an install from before the viewer: the run's files stay complete
+        warnings.warn(
+            f"{Path(out) / VIEW_FILE} not written: the viewer needs plotly "
+            "(pip install 'flexparcel[io]')",
+            stacklevel=2,
+        )
         return {}
     return {"viewer": write_viewer(out)}
