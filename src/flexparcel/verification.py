@@ -199,12 +199,15 @@ def cook_membrane(n: int = 16) -> dict:
     y_low, y_high = 44.0 * xi, 44.0 + 16.0 * xi
     pts = np.column_stack([48.0 * xi, y_low + eta * (y_high - y_low), np.zeros(len(unit))])
     b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
-    ids = b.add_shell_mesh(pts, quads, material=ShellMaterial(1.0, 1.0 / 3.0, 1.0, 1.0))
+    # E = 1 in the benchmark's units: built with E = 1e6 Pa (a plausible SI modulus) and the
+    # load times 1e6, the same linear displacements
+    e_si = 1e6
+    ids = b.add_shell_mesh(pts, quads, material=ShellMaterial(e_si, 1.0 / 3.0, 1.0, 1.0))
     b.fix(ids, ["z", "rx", "ry"])  # plane stress
     b.fix(ids[xi == 0.0], ["x", "y"])
     right = np.flatnonzero(np.isclose(xi, 1.0))
     right = right[np.argsort(eta[right])]
-    for node, f in zip(ids[right], _edge_loads(n, scale), strict=True):
+    for node, f in zip(ids[right], _edge_loads(n, scale * e_si), strict=True):
         b.add_force(node, (0.0, f, 0.0))
     v = solve_static(b.finalize(), load_steps=1).displacements[-1, :, 1] / scale
     mid, corner = ids[right[n // 2]], ids[right[-1]]
