@@ -40,7 +40,7 @@ from flexparcel.elements.solid import SolidGroup
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.model.mesh import surface_triangles
-from flexparcel.model.model import Model, State
+from flexparcel.model.model import BoxGrowth, Model, State
 from flexparcel.model.schedule import Schedule
 from flexparcel.simulate import simulate
 
@@ -259,7 +259,7 @@ def _scale_content(
     sched = f if isinstance(f, Schedule) else Schedule.constant(f)
     if c.content_body is not None:
         outer = np.asarray(c.content_box, dtype=float) / 2
-        model.box_growth[:] = [(c.content_body, outer, sched)]
+        model.box_growth[:] = [BoxGrowth(c.content_body, outer, sched)]
         return
     t = 0.0 if s is None else s.time
     for g, xref0 in zip(_solid_groups(model), xref_full, strict=True):

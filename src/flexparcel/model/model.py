@@ -13,11 +13,24 @@ import numpy as np
 from flexparcel.model.interfaces import ContactSet, ElementGroup
 from flexparcel.model.schedule import Schedule
 
-__all__ = ["Model", "State", "DOFS_PER_NODE", "PACKED_LAW_SIZE"]
+__all__ = ["Model", "State", "BoxGrowth", "DOFS_PER_NODE", "PACKED_LAW_SIZE"]
 
 DOFS_PER_NODE = 6
 PACKED_LAW_SIZE = 15
 """Length of a packed contact law row (checked against flexparcel.contact.law.PACKED_SIZE)."""
+
+
+@dataclass(frozen=True)
+class BoxGrowth:
+    """A rigid body's rounded box growing in time: contact uses ``factor(t) * outer_half -
+    edge radius`` as the inner half sizes."""
+
+    node: int
+    """The rigid body's node."""
+    outer_half: np.ndarray
+    """Outer half sizes at factor 1 [m], shape (3,)."""
+    schedule: Schedule
+    """The size factor over time."""
 
 
 @dataclass
@@ -92,10 +105,9 @@ class Model:
     box_half_by_node: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """Inner half sizes of the rounded box carried by each node (zero if none) [m], (n, 3)."""
     box_radius_by_node: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    box_growth: list = field(default_factory=list)
+    box_growth: list[BoxGrowth] = field(default_factory=list)
     """Rounded boxes whose size changes in time (the assembly grows a content into its
-    packaging): (rigid node, outer half sizes (3,) [m], Schedule of the scale factor). Contact
-    uses ``factor * outer - edge radius`` as the inner half sizes."""
+    packaging), see :class:`BoxGrowth`."""
     free_count: int = -1
     """Number of unknowns; ``free_index`` values >= free_count are FDR slave DOFs."""
     slave_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
@@ -145,9 +157,9 @@ class Model:
         if not self.box_growth:
             return self.box_half_by_node
         half = self.box_half_by_node.copy()
-        for node, outer, schedule in self.box_growth:
-            scaled = np.asarray(outer, dtype=float) * schedule(time)
-            half[node] = np.maximum(scaled - self.box_radius_by_node[node], 0.0)
+        for g in self.box_growth:
+            scaled = np.asarray(g.outer_half, dtype=float) * g.schedule(time)
+            half[g.node] = np.maximum(scaled - self.box_radius_by_node[g.node], 0.0)
         return half
 
     def element_nodes(self) -> np.ndarray:
