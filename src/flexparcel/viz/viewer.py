@@ -49,6 +49,7 @@ import json
 import math
 import warnings
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -139,6 +140,10 @@ def _solid_boundary(ctype: str, conn: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return f, own
 
 
+# what numpy, zipfile and zlib raise on a truncated, damaged or foreign .npz
+_READ_ERRORS = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error)
+
+
 def _read_results(results_dir: Path) -> dict:
     from flexparcel.io.results import load_result
 
@@ -153,7 +158,7 @@ def _read_results(results_dir: Path) -> dict:
         )
     try:
         data = load_result(path)
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+    except _READ_ERRORS as exc:
         raise ViewerError(f"{path}: not a readable results file ({exc})") from None
     for key in ("time", "positions", "velocities", "rotation_vectors"):
         if key not in data:
@@ -171,7 +176,7 @@ def _contact_forces(results_dir: Path, k: int, n: int) -> np.ndarray | None:
     try:
         with np.load(path, allow_pickle=False) as z:
             frame, node, force = z["frame"], z["node"], z["force_N"]
-    except (OSError, ValueError, KeyError) as exc:
+    except _READ_ERRORS as exc:
         raise ViewerError(f"{path}: not a readable contact force file ({exc})") from None
     out = np.zeros((k, n, 3))
     ok = (frame < k) & (node < n)
