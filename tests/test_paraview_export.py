@@ -6,10 +6,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import meshio
 import numpy as np
 import pytest
-
-meshio = pytest.importorskip("meshio")
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "examples" / "consignment_small.toml"
@@ -225,7 +224,6 @@ def test_conveyor_writes_belt_deflectors_and_contact_forces(conveyor_dir):
 
 
 def test_viewer_of_the_conveyor_shows_belt_deflectors_and_forces(conveyor_dir, tmp_path):
-    pytest.importorskip("plotly")
     from flexparcel.viz.viewer import load_scene, write_viewer
 
     out, _, _ = conveyor_dir
@@ -266,7 +264,6 @@ def test_viewer_opens_conveyor_results_written_without_parts(conveyor_dir, tmp_p
     # the node lists of its metadata, the other nodes' cells are the deflectors
     import json
 
-    pytest.importorskip("plotly")
     from flexparcel.viz.viewer import load_scene
 
     out, _, _ = conveyor_dir

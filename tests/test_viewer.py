@@ -20,8 +20,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("plotly")
-
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "examples" / "consignment_small.toml"
 T_END = 0.004
@@ -176,6 +174,27 @@ def test_view_command_errors_name_the_file(tmp_path, capsys):
     assert "Traceback" not in err
     assert main(["view", str(empty), "--max-frames", "1"]) == 2
     assert "--max-frames must be >= 2" in capsys.readouterr().err
+
+
+def test_viewer_writer_never_fails_a_run(tmp_path):
+    # a scenario without results.npz gets no page; one whose results hold no mesh a warning
+    from flexparcel.io.results import save_result
+    from flexparcel.viz.viewer import viewer_writer
+
+    assert viewer_writer(None, tmp_path) == {}
+
+    class Frames:
+        time = np.array([0.0, 0.1])
+        positions = np.zeros((2, 3, 3))
+        rotation_vectors = np.zeros((2, 3, 3))
+        velocities = np.zeros((2, 3, 6))
+        energies: dict = {}
+        stats: dict = {}
+
+    save_result(tmp_path / "results.npz", Frames())
+    with pytest.warns(UserWarning, match="no mesh cells"):
+        assert viewer_writer(None, tmp_path) == {}
+    assert not (tmp_path / "view.html").exists()
 
 
 # --------------------------------------------------------------------------- in a browser

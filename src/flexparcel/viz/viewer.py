@@ -731,7 +731,8 @@ def viewer_writer(result: Any, out: Path) -> dict[str, Path]:
     """A picture writer (:data:`~flexparcel.scenarios.base.PictureWriter`) that writes
     ``out/view.html`` from the results the scenario's ``write`` has just saved there;
     nothing for a scenario that saved no ``results.npz``, and a warning instead of the page
-    where plotly is not installed."""
+    where plotly is not installed or the results cannot be shown (no mesh cells): a run's
+    files never fail on the viewer."""
     if not (Path(out) / "results.npz").is_file():
         return {}
     try:
@@ -743,4 +744,8 @@ def viewer_writer(result: Any, out: Path) -> dict[str, Path]:
             stacklevel=2,
         )
         return {}
-    return {"viewer": write_viewer(out)}
+    try:
+        return {"viewer": write_viewer(out)}
+    except ViewerError as exc:  # a third-party scenario's results without a mesh, say
+        warnings.warn(f"{Path(out) / VIEW_FILE} not written: {exc}", stacklevel=2)
+        return {}
