@@ -32,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="shell edge length [mm] (default: the preset's 10 mm, 5 mm for BW, or the file's)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress line on stderr")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, out_is_dir=True)
 
 
 def element_size_m(mm: float | None) -> float | None:
@@ -41,8 +41,7 @@ def element_size_m(mm: float | None) -> float | None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-
+    from flexparcel.cli.outdir import report_failure
     from flexparcel.cli.snapshots import UNSETTLED_FILES, assemble_job
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
@@ -56,10 +55,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         snap, files = assemble_job(build, args.out, progress=not args.no_progress)
     except AssemblyError as exc:
-        print(f"flexparcel assemble: assembly failed: {exc}", file=sys.stderr)
+        report_failure(f"flexparcel assemble: assembly failed: {exc}")
         if exc.unsettled is not None:
             paths = ", ".join(str(args.out / name) for name in UNSETTLED_FILES)
-            print(f"its last state: {paths}", file=sys.stderr)
+            report_failure(f"its last state: {paths}")
         return 1
     info = snap.info
     print(

@@ -98,7 +98,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from flexparcel.bench import run_benchmarks
-    from flexparcel.cli.progress import ProgressLine
+    from flexparcel.cli.progress import SimulationProgress
 
     try:
         counts = tuple(int(c) for c in args.scaling_counts.split(","))
@@ -141,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
         args.cases,
         args.out,
         quick=args.quick,
-        progress_factory=lambda n: ProgressLine(n, enabled=not args.no_progress),
+        progress_factory=lambda n: SimulationProgress(n, enabled=not args.no_progress),
         case_options=options,
     )
     for r in results:

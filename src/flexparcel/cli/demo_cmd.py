@@ -69,12 +69,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--element-size", type=float, default=None, metavar="MM",
                    help="shell edge length [mm] (default 10, or 25 with --quick)")  # fmt: skip
     p.add_argument("--no-progress", action="store_true")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, out_is_dir=True)
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-
+    from flexparcel.cli.outdir import report_failure
     from flexparcel.cli.run_cmd import TESTS, format_responses, run_and_write
     from flexparcel.cli.snapshots import assemble_job
     from flexparcel.consignments.assembly import AssemblyError
@@ -95,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         snap, _ = assemble_job(build, out / "assembly", progress=progress)
     except AssemblyError as exc:
-        print(f"flexparcel demo: assembly failed: {exc}", file=sys.stderr)
+        report_failure(f"flexparcel demo: assembly failed: {exc}")
         return 1
     print(f"assembled in {snap.info['wall_s']:.1f} s")
     results: dict[str, dict | str] = {}
@@ -110,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{test}: {shown}; {result.wall_s:.1f} s wall")
         except ConvergenceError as exc:  # report it and go on with the other tests
             results[test] = str(exc)
-            print(f"flexparcel demo: {test} failed: {exc}", file=sys.stderr)
+            report_failure(f"flexparcel demo: {test} failed: {exc}")
     text = report_markdown(build, snap.info, results, quick=args.quick,
                            total_wall=time.perf_counter() - wall0)  # fmt: skip
     report = out / "report.md"

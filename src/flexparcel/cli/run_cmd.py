@@ -155,12 +155,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="conveyor: no stepping; write the files of the frames DIR/checkpoint.npz holds "
         "so far (a run going on in another process, or an interrupted one) to DIR/preview/",
     )
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, out_is_dir=True)
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-
+    from flexparcel.cli.outdir import report_failure
     from flexparcel.cli.snapshots import assemble_job
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.snapshot import check_snapshot_matches, load_snapshot
@@ -189,6 +188,7 @@ def run(args: argparse.Namespace) -> int:
         snap = load_snapshot(args.snapshot)
         check_snapshot_matches(snap, build, size)
     # bad --set values fail here, before a (long) assembly
+    check_set_bounds(args.assignments)
     params = scenario.resolve(args.assignments, snap.build if snap is not None else build)
     progress = not args.no_progress
     try:
@@ -200,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
         result, files = run_and_write(scenario, snap, params, args.out, t_end=args.t_end,
                                       progress=progress, extra={"snapshot": source})  # fmt: skip
     except (AssemblyError, ConvergenceError) as exc:
-        print(f"flexparcel run: {args.test} failed: {exc}", file=sys.stderr)
+        report_failure(f"flexparcel run: {args.test} failed: {exc}")
         return 1
     responses = format_responses(scenario.responses(result))
     simulated = float(result.simulation.time[-1] - result.simulation.time[0])
@@ -211,18 +211,57 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def set_bounds() -> dict[str, tuple[str, float, float, bool, bool, str]]:
+    """``--set`` name -> (consignment-file key, low, high, low open, high open, unit): the
+    bounds a consignment file puts on the same quantity
+    (:data:`flexparcel.consignments.userfile.MATERIAL_KEYS`), in the same paper units."""
+    from flexparcel.consignments.userfile import MATERIAL_KEYS
+
+    by_field = {field: (key, lo, hi, unit) for key, (field, _f, lo, hi, unit)
+                in MATERIAL_KEYS.items()}  # fmt: skip
+    out = {}
+    for name in ("youngs_modulus", "damping_ratio"):
+        key, lo, hi, unit = by_field[name]
+        out[name] = (key, float(lo[1:]), float(hi[:-1]), lo[0] == "(", hi[-1] == ")", unit)
+    return out
+
+
+def check_set_bounds(assignments: list[str]) -> None:
+    """``ValueError`` for a ``--set NAME=VALUE`` outside the bounds a consignment file
+    allows for the same quantity (e.g. ``damping_ratio`` in [0, 1] s); other names and
+    values that are no numbers are left to the scenario's own check."""
+    import math
+
+    bounds = set_bounds()
+    for text in assignments:
+        name, sep, value = text.partition("=")
+        name = name.strip()
+        if not sep or name not in bounds:
+            continue
+        try:
+            v = float(value)
+        except ValueError:
+            continue
+        key, lo, hi, lo_open, hi_open, unit = bounds[name]
+        ok = math.isfinite(v) and (v > lo if lo_open else v >= lo)
+        ok = ok and (v < hi if hi_open else v <= hi)
+        if not ok:
+            span = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'} {unit}"
+            raise ValueError(
+                f"--set {text.strip()}: {name} must be in {span} (the bound of {key} in a "
+                f"consignment file), got {v:g}"
+            )
+
+
 def run_and_write(scenario, snapshot, parameters, out: Path, *, t_end: float | None = None,
                   progress: bool = True, extra: dict | None = None):  # fmt: skip
-    """Run ``scenario`` on one consignment's ``snapshot`` with a progress line on stderr and
+    """Run ``scenario`` on one consignment's ``snapshot`` with a progress bar on stderr and
     write its files (with its pictures) into ``out``; returns the result and name -> path."""
-    from flexparcel.cli.progress import ProgressLine
+    from flexparcel.cli.progress import SimulationProgress
     from flexparcel.viz.scenario_pictures import pictures_for
 
-    bar = ProgressLine(f"{scenario.name} {snapshot.build.spec.id}", enabled=progress)
-    try:
+    with SimulationProgress(f"{scenario.name} {snapshot.build.spec.id}", enabled=progress) as bar:
         result = scenario.run(snapshot, parameters, t_end=t_end, progress=bar)
-    finally:
-        bar.done()
     files = scenario.write(result, out, extra=extra, pictures=pictures_for(scenario.name))
     return result, files
 
@@ -264,7 +303,8 @@ def _conveyor_refs(args: argparse.Namespace, scene) -> dict[str, str]:
 def _run_conveyor(args: argparse.Namespace) -> int:
     import sys
 
-    from flexparcel.cli.progress import ProgressLine
+    from flexparcel.cli.outdir import report_failure
+    from flexparcel.cli.progress import SimulationProgress
     from flexparcel.cli.snapshots import snapshot_for
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
@@ -316,18 +356,15 @@ def _run_conveyor(args: argparse.Namespace) -> int:
         out.mkdir(parents=True, exist_ok=True)
         if checkpoint.exists() and not args.preview:
             print(f"conveyor: resuming from {checkpoint}", file=sys.stderr)
-        bar = ProgressLine(f"conveyor ({len(layout.placements)} consignments)",
-                           enabled=progress and not args.preview)  # fmt: skip
-        try:
+        label = f"conveyor ({len(layout.placements)} consignments)"
+        with SimulationProgress(label, enabled=progress and not args.preview) as bar:
             result = scenario.run(snaps, params, t_end=t_end, progress=bar)
-        finally:
-            bar.done()
         extra = {"snapshots": sources,
                  "scene_file": None if args.scene is None else str(args.scene)}  # fmt: skip
         files = scenario.write(result, out / "preview" if args.preview else out, extra=extra,
                                pictures=pictures_for("conveyor"))  # fmt: skip
     except (AssemblyError, ConvergenceError) as exc:
-        print(f"flexparcel run: conveyor failed: {exc}", file=sys.stderr)
+        report_failure(f"flexparcel run: conveyor failed: {exc}")
         return 1
     res = result.simulation
     print(

@@ -15,7 +15,6 @@ HDBSCAN, keeps ``--keep`` diverse clusters and writes into ``--out``:
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
@@ -61,7 +60,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--no-plot", action="store_true", help="skip embedding.png")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, out_is_dir=True)
 
 
 def _parse_weights(items: list[str]) -> dict[str, float]:
@@ -79,6 +78,7 @@ def _parse_weights(items: list[str]) -> dict[str, float]:
 
 def run(args: argparse.Namespace) -> int:
     """Execute ``flexparcel select``; returns the exit code (1 when no cluster is found)."""
+    from flexparcel.io.atomic import atomic_path, write_atomic
     from flexparcel.selection import (
         cluster_survey,
         describe_schema,
@@ -93,6 +93,7 @@ def run(args: argparse.Namespace) -> int:
         consignment_from_centroid,
         write_centroid_csv,
         write_consignment_toml,
+        write_csv,
         write_labels_csv,
         write_selection_csv,
     )
@@ -107,7 +108,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.synthetic:
         survey, _ = make_synthetic_survey(random_state=args.seed)
-        write_survey_csv(survey, out / "survey.csv")
+        with atomic_path(out / "survey.csv") as tmp:
+            write_survey_csv(survey, tmp)
         print(f"synthetic survey ({len(survey)} rows, seed {args.seed}) -> {out / 'survey.csv'}")
     else:
         survey = read_survey(args.survey, args.schema, exclude=args.exclude)
@@ -115,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
         if args.schema is None:
             print("inferred schema (write your own TOML with --schema to change it):")
             print(describe_schema(survey.schema, survey))
-    write_schema(survey.schema, out / "schema.toml")
+    with atomic_path(out / "schema.toml") as tmp:
+        write_schema(survey.schema, tmp)
 
     result = cluster_survey(
         survey,
@@ -147,14 +150,14 @@ def run(args: argparse.Namespace) -> int:
     selection = select_diverse(cd, keep, cluster_ids=table.cluster_ids, sizes=table.sizes)
 
     markdown = centroid_table_markdown(table)
-    (out / "centroids.md").write_text(markdown, encoding="utf-8")
+    write_atomic(out / "centroids.md", markdown)
     write_centroid_csv(table, out / "centroids.csv")
     write_selection_csv(table, selection, out / "selection.csv")
-    with (out / "centroid_distances.csv").open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["cluster", *table.cluster_ids])
-        for k, row in zip(table.cluster_ids, cd, strict=True):
-            w.writerow([k, *(f"{v:.6f}" for v in row)])
+    write_csv(
+        out / "centroid_distances.csv",
+        ["cluster", *table.cluster_ids],
+        ([k, *(f"{v:.6f}" for v in row)] for k, row in zip(table.cluster_ids, cd, strict=True)),
+    )
 
     print()
     print(markdown)
@@ -171,13 +174,17 @@ def run(args: argparse.Namespace) -> int:
             print(f"consignment file for cluster {k} not written: {exc}", file=sys.stderr)
             continue
         cons_dir.mkdir(exist_ok=True)
-        written.append(write_consignment_toml(spec, cons_dir / f"{spec.id}.toml"))
+        target = cons_dir / f"{spec.id}.toml"
+        with atomic_path(target) as tmp:
+            write_consignment_toml(spec, tmp)
+        written.append(target)
     if written:
         print(f"consignment files: {', '.join(str(p) for p in written)}")
 
     if not args.no_plot:
         from flexparcel.selection.plot import plot_embedding
 
-        plot_embedding(result, out / "embedding.png", kept=selection.kept)
+        with atomic_path(out / "embedding.png") as tmp:
+            plot_embedding(result, tmp, kept=selection.kept)
     print(f"outputs in {out}")
     return 0

@@ -87,7 +87,7 @@ def assemble_job(
     files of the settled state into ``out``. A consignment that does not come to rest raises
     :class:`AssemblyError` after its last state and picture are written to ``out``
     (:data:`UNSETTLED_FILES`; for diagnosis, no test starts from it)."""
-    from flexparcel.cli.progress import PhaseLine
+    from flexparcel.cli.progress import PhaseProgress
     from flexparcel.consignments.assembly import AssemblyError, assemble
     from flexparcel.consignments.snapshot import save_snapshot
     from flexparcel.elements.rotations import rotation_vectors
@@ -96,7 +96,7 @@ def assemble_job(
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    line = PhaseLine(f"assemble {build.spec.id}", enabled=progress)
+    line = PhaseProgress(f"assemble {build.spec.id}", enabled=progress)
     try:
         snap = assemble(build, progress=line)
     except AssemblyError as exc:

@@ -18,6 +18,7 @@ import numpy as np
 from flexparcel import __version__
 from flexparcel.consignments.build import ConsignmentBuild
 from flexparcel.io.atomic import write_atomic
+from flexparcel.io.results import FileFormatError, read_npz
 from flexparcel.model.model import Model, State
 
 __all__ = [
@@ -27,13 +28,15 @@ __all__ = [
     "load_snapshot",
     "place_snapshot",
     "check_snapshot_matches",
+    "SnapshotError",
 ]
 
 SNAPSHOT_FORMAT = 1
 
 
-class SnapshotError(ValueError):
-    """A snapshot file is unreadable, of another format version, or does not fit the model."""
+class SnapshotError(FileFormatError):
+    """A snapshot file is unreadable, of another format version, or does not fit the model
+    (a :class:`~flexparcel.io.FileFormatError`, hence a ``ValueError``)."""
 
 
 @dataclass
@@ -99,20 +102,53 @@ def save_snapshot(snapshot: Snapshot, path: str | Path) -> Path:
 
 
 def load_snapshot(path: str | Path) -> Snapshot:
-    """Read a snapshot written by :func:`save_snapshot`."""
+    """Read a snapshot written by :func:`save_snapshot`.
+
+    Raises :class:`SnapshotError` naming the file for an empty, truncated, damaged or foreign
+    file, a missing entry or another format version; ``FileNotFoundError`` for a missing
+    file."""
     path = Path(path)
+    what = "snapshot"
+    data = read_npz(path, what, SnapshotError)
+    missing = [k for k in _SNAPSHOT_KEYS if k not in data]
+    if missing:
+        raise SnapshotError(
+            f"{what} {path}: not a flexparcel snapshot (no {', '.join(map(repr, missing))}; "
+            "make one with flexparcel assemble)"
+        )
     try:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            arrays = {k: z[k].copy() for k in ("reference_positions", "positions", "rotations")}
-    except (OSError, ValueError, KeyError) as exc:
-        raise SnapshotError(f"{path}: not a flexparcel snapshot ({exc})") from exc
+        meta = json.loads(str(data["meta"]))
+    except json.JSONDecodeError as exc:
+        raise SnapshotError(f"{what} {path}: its 'meta' entry is not valid JSON ({exc})") from exc
+    if not isinstance(meta, dict):
+        raise SnapshotError(f"{what} {path}: not a flexparcel snapshot (its 'meta' is no table)")
     if meta.get("format") != SNAPSHOT_FORMAT:
         raise SnapshotError(
-            f"{path}: snapshot format {meta.get('format')!r}, this flexparcel reads "
+            f"{what} {path}: snapshot format {meta.get('format')!r}, this flexparcel reads "
             f"format {SNAPSHOT_FORMAT}; assemble the consignment again"
         )
-    return Snapshot(ConsignmentBuild.from_dict(meta["build"]), info=meta["info"], **arrays)
+    arrays = {k: data[k] for k in _SNAPSHOT_KEYS[1:]}
+    n = len(arrays["positions"])
+    shapes = {"reference_positions": (n, 3), "positions": (n, 3), "rotations": (n, 3, 3)}
+    for k, shape in shapes.items():
+        if arrays[k].shape != shape or not np.issubdtype(arrays[k].dtype, np.floating):
+            raise SnapshotError(
+                f"{what} {path}: {k} has shape {arrays[k].shape} ({arrays[k].dtype}), "
+                f"expected {shape} floats"
+            )
+    try:
+        build = ConsignmentBuild.from_dict(meta["build"])
+        info = meta["info"]
+    except KeyError as exc:
+        raise SnapshotError(f"{what} {path}: its 'meta' has no {exc} entry") from exc
+    except (TypeError, ValueError) as exc:
+        raise SnapshotError(
+            f"{what} {path}: its consignment description is invalid ({exc})"
+        ) from exc
+    return Snapshot(build, info=info, **arrays)
+
+
+_SNAPSHOT_KEYS = ("meta", "reference_positions", "positions", "rotations")
 
 
 def place_snapshot(

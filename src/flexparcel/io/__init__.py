@@ -1,8 +1,14 @@
-"""Results files (npz) and ParaView export. Heavy dependencies are imported lazily."""
+"""Results files (npz) and ParaView export. Heavy dependencies are imported lazily.
 
-from flexparcel.io.results import load_result, save_result
+Every reader of a flexparcel file raises :class:`FileFormatError` (a ``ValueError``) naming
+the file when it cannot be read; its subclasses are ``CheckpointError``
+(:mod:`flexparcel.io.checkpoint`) and ``SnapshotError``
+(:mod:`flexparcel.consignments.snapshot`).
+"""
 
-__all__ = ["save_result", "load_result", "write_paraview"]
+from flexparcel.io.results import FileFormatError, load_result, save_result
+
+__all__ = ["FileFormatError", "save_result", "load_result", "write_paraview"]
 
 
 def write_paraview(*args, **kwargs):

@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from flexparcel.io.atomic import write_atomic
+from flexparcel.io.results import FileFormatError, read_npz
 from flexparcel.model.model import Model, State
 
 __all__ = [
@@ -46,8 +46,9 @@ _MODEL_FIELDS = (
 )  # fmt: skip
 
 
-class CheckpointError(ValueError):
-    """A checkpoint file that cannot be read or belongs to another run."""
+class CheckpointError(FileFormatError):
+    """A checkpoint file that cannot be read or belongs to another run (a
+    :class:`~flexparcel.io.FileFormatError`, hence a ``ValueError``)."""
 
 
 def _digest(arrays) -> str:
@@ -110,13 +111,7 @@ def load_checkpoint(path: str | Path) -> RunCheckpoint:
     """Read a checkpoint written by :func:`save_checkpoint`; raises :class:`CheckpointError`
     naming the file for anything unreadable, of another format or of another version."""
     path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except FileNotFoundError:
-        raise
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
-        raise CheckpointError(f"checkpoint {path}: not a readable .npz file ({e})") from e
+    data = read_npz(path, "checkpoint", CheckpointError)
     try:
         header = json.loads(str(data["header"]))
     except (KeyError, json.JSONDecodeError) as e:

@@ -2,20 +2,44 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 from flexparcel.model.checks import finite_number
 
-__all__ = ["ShellMaterial", "validate_elastic"]
+__all__ = ["ShellMaterial", "validate_elastic", "UnitWarning", "PLAUSIBLE_MIN_YOUNGS_MODULUS"]
+
+PLAUSIBLE_MIN_YOUNGS_MODULUS = 1e5
+"""Young's moduli below this [Pa] are warned about: softer than any packaging film, board
+or content flexparcel models (soft foam and granulate are 0.1-10 MPa), but exactly what a
+modulus in the paper's MPa (926 for KP/BW) looks like when typed into the SI API."""
+
+
+class UnitWarning(UserWarning):
+    """A value that is implausible in SI units but plausible in the paper's units (MPa,
+    N/mm, mm): probably typed in the wrong unit. Silence it with
+    ``warnings.simplefilter("ignore", UnitWarning)`` for deliberately non-dimensional models
+    (e.g. patch tests with E = 1)."""
+
+
+def _si(v: float) -> str:
+    """``9.26e+08`` -> ``9.26e8`` (3 significant digits)."""
+    text = f"{v:.3g}"
+    mant, sep, exp = text.partition("e")
+    return f"{mant}e{int(exp)}" if sep else text
 
 
 def _check_finite(owner: str, name: str, value: float) -> float:
     return finite_number(f"{owner}.{name}", value)
 
 
-def validate_elastic(mat, name: str) -> None:
+def validate_elastic(mat, name: str, stacklevel: int = 4) -> None:
     """Check the isotropic elastic fields shared by shell and solid materials: finite numbers,
-    E > 0, 0 <= nu < 0.5, rho > 0, Rayleigh beta >= 0; errors name the field and the range."""
+    E > 0, 0 <= nu < 0.5, rho > 0, Rayleigh beta >= 0; errors name the field and the range.
+
+    A modulus below :data:`PLAUSIBLE_MIN_YOUNGS_MODULUS` (a value in MPa given as Pa, e.g.
+    926 for 926 MPa) raises a :class:`UnitWarning` with the conversion; ``stacklevel``
+    points it at the caller's line (4: the code that made the dataclass)."""
     e = _check_finite(name, "youngs_modulus", mat.youngs_modulus)
     nu = _check_finite(name, "poisson_ratio", mat.poisson_ratio)
     rho = _check_finite(name, "density", mat.density)
@@ -28,6 +52,14 @@ def validate_elastic(mat, name: str) -> None:
         raise ValueError(f"{name}.density must be > 0 kg/m^3, got {rho!r}")
     if beta < 0:
         raise ValueError(f"{name}.damping_ratio (Rayleigh beta) must be >= 0 s, got {beta!r}")
+    if e < PLAUSIBLE_MIN_YOUNGS_MODULUS:
+        warnings.warn(
+            f"{name}.youngs_modulus = {e:g} Pa is implausibly low for SI units (below "
+            f"{PLAUSIBLE_MIN_YOUNGS_MODULUS:g} Pa); did you mean {e:g} MPa = {_si(e * 1e6)} Pa? "
+            "flexparcel's Python API takes Pa (only the consignment files and --set take MPa)",
+            UnitWarning,
+            stacklevel=stacklevel,
+        )
 
 
 @dataclass(frozen=True)

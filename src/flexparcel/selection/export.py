@@ -10,8 +10,9 @@ re-exported here; see :func:`write_consignment_toml` for the format and ``docs/s
 from __future__ import annotations
 
 import csv
+import io
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ from flexparcel.consignments.spec import (
     read_consignment_toml,
     write_consignment_toml,
 )
+from flexparcel.io.atomic import write_atomic
 from flexparcel.selection.clustering import CentroidTable, DiverseSelection, SurveyClustering
 
 __all__ = [
@@ -40,6 +42,7 @@ __all__ = [
     "write_centroid_csv",
     "write_selection_csv",
     "write_labels_csv",
+    "write_csv",
 ]
 
 # Survey spellings of the packaging materials (matched case- and space-insensitively).
@@ -210,17 +213,25 @@ def centroid_table_markdown(table: CentroidTable, *, medoids: bool = True) -> st
     return "\n".join(lines) + "\n"
 
 
+def write_csv(path: str | Path, header: Sequence[object], rows: Iterable[Sequence[object]]) -> Path:
+    """Write a CSV file (UTF-8, the csv module's dialect) atomically: a temporary file in the
+    same folder, then ``os.replace``, so a reader never sees half a table."""
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(header)
+    w.writerows(rows)
+    return write_atomic(Path(path), buf.getvalue())
+
+
 def write_centroid_csv(table: CentroidTable, path: str | Path) -> Path:
     """Write the centroid table as CSV: cluster, cluster_size, feature columns, medoid_id."""
-    path = Path(path)
-    with path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["cluster", "cluster_size", *table.schema.names, "medoid_id"])
+    rows = (
+        [k, size, *(_fmt(vals[n]) for n in table.schema.names), med]
         for k, size, vals, med in zip(
             table.cluster_ids, table.sizes, table.values, table.medoid_ids, strict=True
-        ):
-            w.writerow([k, size, *(_fmt(vals[n]) for n in table.schema.names), med])
-    return path
+        )
+    )
+    return write_csv(path, ["cluster", "cluster_size", *table.schema.names, "medoid_id"], rows)
 
 
 def write_selection_csv(
@@ -228,28 +239,21 @@ def write_selection_csv(
 ) -> Path:
     """Write the selection as CSV: cluster, cluster_size, kept, drop_order (1 = dropped first),
     mean_distance_at_drop (Gower, the redundancy that made it go), medoid_id."""
-    path = Path(path)
-    with path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(
-            ["cluster", "cluster_size", "kept", "drop_order", "mean_distance_at_drop", "medoid_id"]
-        )
-        for k, size, med in zip(table.cluster_ids, table.sizes, table.medoid_ids, strict=True):
-            if k in selection.dropped:
-                i = selection.dropped.index(k)
-                row = [k, size, "false", i + 1, f"{selection.mean_distance_at_drop[i]:.6f}", med]
-            else:
-                row = [k, size, "true", "", "", med]
-            w.writerow(row)
-    return path
+    rows = []
+    for k, size, med in zip(table.cluster_ids, table.sizes, table.medoid_ids, strict=True):
+        if k in selection.dropped:
+            i = selection.dropped.index(k)
+            rows.append([k, size, "false", i + 1, f"{selection.mean_distance_at_drop[i]:.6f}", med])
+        else:
+            rows.append([k, size, "true", "", "", med])
+    header = ["cluster", "cluster_size", "kept", "drop_order", "mean_distance_at_drop", "medoid_id"]
+    return write_csv(path, header, rows)
 
 
 def write_labels_csv(result: SurveyClustering, path: str | Path) -> Path:
     """Write per-row cluster labels as CSV: id, cluster (-1 = noise), probability."""
-    path = Path(path)
-    with path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["id", "cluster", "probability"])
-        for rid, lab, p in zip(result.survey.ids, result.labels, result.probabilities, strict=True):
-            w.writerow([rid, int(lab), f"{p:.4f}"])
-    return path
+    rows = (
+        [rid, int(lab), f"{p:.4f}"]
+        for rid, lab, p in zip(result.survey.ids, result.labels, result.probabilities, strict=True)
+    )
+    return write_csv(path, ["id", "cluster", "probability"], rows)

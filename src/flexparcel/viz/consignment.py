@@ -96,14 +96,24 @@ def _draw(ax, positions: np.ndarray, cells, boxes: Sequence[Box], axes: tuple[in
     ax.autoscale_view()
 
 
-def _save(fig, path: str | Path, dpi: float | None = None) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    import matplotlib.pyplot as plt
+def save_figure(fig, path: str | Path, dpi: float | None = None) -> Path:
+    """Write ``fig`` to ``path`` atomically (a temporary file in the same folder, then
+    ``os.replace``: a reader never sees half a picture) in the format of its suffix (PNG
+    without one) and close it; returns ``path``."""
+    from flexparcel.io.atomic import write_atomic
 
-    plt.close(fig)
+    path = Path(path)
+    fmt = path.suffix[1:].lower() or "png"
+    try:
+        write_atomic(path, lambda fh: fig.savefig(fh, format=fmt, dpi=dpi))
+    finally:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
     return path
+
+
+_save = save_figure
 
 
 def _finish(fig, path: str | Path, title: str = "", dpi: float | None = None) -> Path:

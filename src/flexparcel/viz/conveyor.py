@@ -200,7 +200,12 @@ def animate_conveyor(
         fig.suptitle(title)
     anim = FuncAnimation(fig, draw, frames=len(idx), blit=False)
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(str(path), writer=PillowWriter(fps=int(fps)))
-    plt.close(fig)
+    from flexparcel.io.atomic import atomic_path
+
+    try:
+        # a temporary .gif in the same folder, moved into place when complete
+        with atomic_path(path) as tmp:
+            anim.save(str(tmp), writer=PillowWriter(fps=int(fps)))
+    finally:
+        plt.close(fig)
     return path

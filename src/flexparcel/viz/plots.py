@@ -27,8 +27,6 @@ def plot_time_series(
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    from flexparcel.viz.consignment import save_figure
+
+    return save_figure(fig, path)
