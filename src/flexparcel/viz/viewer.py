@@ -414,6 +414,14 @@ def choose_frames(count: int, per_frame: int, fixed: int, max_bytes: float,
     return idx
 
 
+def _eye(scene: ViewScene) -> dict:
+    """Camera position: from the front left and above; a long belt seen from further off, so
+    that it fits."""
+    if any(t.get("name", "").startswith("belt") for t in scene.static):
+        return {"x": -0.5, "y": -2.4, "z": 1.3}
+    return {"x": -1.4, "y": -1.6, "z": 1.0}
+
+
 def _categorical(n: int) -> list:
     """A discrete colour scale over ids 0 .. n - 1 (cmin -0.5, cmax n - 0.5)."""
     n = max(n, 1)
@@ -495,7 +503,7 @@ def _page(scene: ViewScene, frames: np.ndarray, note: str, total: int) -> str:
         title={"text": f"{html.escape(scene.title)}<br><sub>{html.escape(note)}</sub>"},
         scene={"aspectmode": "data", "xaxis": {"title": {"text": "x [m]"}},
                "yaxis": {"title": {"text": "y [m]"}}, "zaxis": {"title": {"text": "z [m]"}},
-               "camera": {"eye": {"x": -1.4, "y": -1.6, "z": 1.0}}},
+               "camera": {"eye": _eye(scene)}},
         margin={"l": 0, "r": 0, "t": 70, "b": 0}, legend={"x": 0.0, "y": 0.95},
         uirevision="keep",
     )  # fmt: skip
