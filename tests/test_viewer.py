@@ -207,6 +207,7 @@ def _chromium() -> str | None:
 
 
 CHROMIUM = _chromium()
+# software WebGL (SwiftShader): newer Chromium builds no longer fall back to it by themselves
 BROWSER_FLAGS = ["--headless", "--disable-gpu", "--no-sandbox", "--enable-unsafe-swiftshader",
                  "--use-angle=swiftshader", "--hide-scrollbars", "--mute-audio",
                  "--disable-dev-shm-usage", "--virtual-time-budget=15000"]  # fmt: skip
