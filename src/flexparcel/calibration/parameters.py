@@ -220,6 +220,10 @@ class Target:
         report flags validation runs that miss the target by more than it.
     unit:
         Unit label of the response; informative only.
+    transform, log_offset:
+        How the surrogate models the response: ``"none"``, or ``"log"`` for
+        ``log(y + log_offset)`` (a response spanning decades or approaching zero). The
+        optimisation and the report stay in the response's own units.
     """
 
     experiment: str
@@ -228,6 +232,8 @@ class Target:
     weight: float | None = None
     spread: float | None = None
     unit: str = ""
+    transform: str = "none"
+    log_offset: float = 0.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.value, (int, float)) or not math.isfinite(self.value):
@@ -241,6 +247,15 @@ class Target:
         if self.spread is not None and not (math.isfinite(self.spread) and self.spread >= 0):
             raise ValueError(
                 f"target {self.experiment}.{self.response}: spread must be a number >= 0"
+            )
+        if self.transform not in ("none", "log"):
+            raise ValueError(
+                f"target {self.experiment}.{self.response}: transform must be 'none' or 'log', "
+                f"got {self.transform!r}"
+            )
+        if not (math.isfinite(self.log_offset) and self.log_offset >= 0):
+            raise ValueError(
+                f"target {self.experiment}.{self.response}: log_offset must be a number >= 0"
             )
 
     @property

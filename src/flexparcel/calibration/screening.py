@@ -2,14 +2,16 @@
 
 :class:`AnovaScreening` fits a linear model with main effects and two-factor interactions to the
 runs of a two-level (full or fractional) factorial in coded units and tests every term with a
-multi-factor ANOVA at level ``alpha``. Three-factor and higher interactions are not in the model,
-so their variation is pooled into the error term, the classical approach for unreplicated
-factorials (and, for a deterministic simulator, the only source of an error estimate besides the
-numerical noise).
+multi-factor ANOVA at level ``alpha``, computed with statsmodels (``statsmodels.formula.api.ols``
+and ``statsmodels.stats.anova.anova_lm``: F and p per term). Three-factor and higher interactions
+are not in the model, so their variation is pooled into the error term, the classical approach
+for unreplicated factorials (and, for a deterministic simulator, the only source of an error
+estimate besides the numerical noise).
 
-When no error degrees of freedom are left (a saturated design) or the residual vanishes (a
-noise-free simulator whose response the model reproduces exactly), the F test is undefined and
-Lenth's method is used instead: every estimable effect is compared with the margin of error
+Lenth's method is only for saturated designs: when (almost) no error degrees of freedom are
+left (fewer than ``min_error_df``) or the residual vanishes (a noise-free simulator whose
+response the model reproduces exactly), the F test is undefined or has no power, and Lenth's
+method is used instead: every estimable effect is compared with the margin of error
 ``t(1 - alpha/2, m/3) * PSE``, where the pseudo standard error ``PSE`` is a robust scale of the
 (mostly inert) effects (R. V. Lenth, Technometrics 31 (1989) 469-473).
 
@@ -65,6 +67,8 @@ class AnovaScreening:
     ----------
     method_ : str
         The method actually used, ``"anova"`` or ``"lenth"``.
+    method_reason_ : str
+        Why that method ran (for the report).
     factor_names_ : list of str
         Names of the design columns.
     terms_ : list of str
@@ -125,10 +129,16 @@ class AnovaScreening:
             for j, name in enumerate(names)
         }
 
+        if np.ptp(y) == 0.0:
+            raise ValueError(
+                f"the response is constant over the design (every run gives {y[0]:g}): no "
+                "effect can be estimated and an F ratio is 0/0"
+            )
         order = 2 if self.interactions else 1
         terms, columns, aliased = self._model_terms(X, names, order)
         n_terms = len(terms)
         residual_df = n - 1 - n_terms
+        model = "main effects and two-factor interactions" if self.interactions else "main effects"
         use_anova = self.method == "anova" or (
             self.method == "auto" and residual_df >= self.min_error_df
         )
@@ -137,10 +147,29 @@ class AnovaScreening:
                 f"ANOVA needs residual degrees of freedom: {n} runs, {n_terms} terms; "
                 "use method='lenth' or a larger design"
             )
+        if self.method == "lenth":
+            reason = "Lenth's method requested (method = 'lenth')"
+        elif not use_anova:
+            reason = (
+                f"saturated design: {n} runs and {n_terms} terms ({model}) leave {residual_df} "
+                f"error degrees of freedom (an F test needs at least {self.min_error_df} here), "
+                "so the effects are judged against Lenth's pseudo standard error"
+            )
+        else:
+            reason = (
+                f"multi-factor ANOVA (statsmodels ols + anova_lm) of {model}: {n} runs, "
+                f"{n_terms} terms, higher-order interactions pooled into {residual_df} error "
+                "degrees of freedom"
+            )
         if use_anova:
             fitted = self._anova(X, y, terms, columns)
             if fitted is None:  # residual is zero: F undefined
                 use_anova = False
+                reason = (
+                    f"the {model} model reproduces the response exactly (zero residual, F "
+                    "undefined), so the effects are judged against Lenth's pseudo standard error"
+                )
+        self.method_reason_ = reason
         if not use_anova:
             # Lenth works on the saturated model: all estimable effects up to full order, so
             # that the inert higher-order effects provide the scale estimate.
@@ -194,41 +223,52 @@ class AnovaScreening:
         return terms, cols, aliased
 
     def _anova(self, X, y, terms, columns) -> bool | None:
-        import statsmodels.api as sm
-        from scipy import stats
+        """The multi-factor ANOVA of the paper (section 4.2) with statsmodels' formula API.
 
-        M = np.column_stack([np.ones(len(y)), *columns])
-        res = sm.OLS(y, M).fit()
+        ``ols("y ~ x0 + x1 + x0:x1 + ...")`` over the estimable terms (aliased ones left out,
+        so the model matrix has full rank) and ``anova_lm`` for F and p per term. Factor names
+        become ``x0, x1, ...`` in the formula, so any parameter name works. In the orthogonal
+        two-level designs used here type I, II and III sums of squares coincide; type II is
+        used. Returns None when the residual vanishes (F undefined).
+        """
+        import pandas as pd
+        from statsmodels.formula.api import ols
+        from statsmodels.stats.anova import anova_lm
+
+        code = {name: f"x{j}" for j, name in enumerate(self.factor_names_)}
+        data = pd.DataFrame({f"x{j}": X[:, j] for j in range(X.shape[1])})
+        data["y"] = y
+        coded_terms = [":".join(code[f] for f in t.split(":")) for t in terms]
+        res = ols("y ~ " + " + ".join(coded_terms), data=data).fit()
         ss_total = float(((y - y.mean()) ** 2).sum())
         if res.ssr <= 1e-24 * max(ss_total, 1e-300) or res.ssr == 0.0:
             return None
-        mse = float(res.ssr / res.df_resid)
-        # For single-degree-of-freedom terms the F statistic is the squared t statistic and the
-        # sum of squares is F * MSE (type III). In the orthogonal two-level designs used here
-        # type I, II and III sums of squares coincide.
-        rows = []
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            for j, term in enumerate(terms, start=1):
-                F = float(res.tvalues[j] ** 2)
-                p = float(stats.f.sf(F, 1, res.df_resid))
-                rows.append(
-                    {
-                        "term": term,
-                        "df": 1,
-                        "sum_sq": F * mse,
-                        "mean_sq": F * mse,
-                        "F": F,
-                        "p": p,
-                        "effect": float(2.0 * res.params[j]),
-                        "significant": bool(p < self.alpha),
-                    }
-                )
+            table = anova_lm(res, typ=2)
+        rows = []
+        for term, ct in zip(terms, coded_terms, strict=True):
+            row = table.loc[ct]
+            p = float(row["PR(>F)"])
+            rows.append(
+                {
+                    "term": term,
+                    "df": int(row["df"]),
+                    "sum_sq": float(row["sum_sq"]),
+                    "mean_sq": float(row["sum_sq"] / row["df"]),
+                    "F": float(row["F"]),
+                    "p": p,
+                    # effect: low -> high change of the mean = twice the coded coefficient
+                    "effect": float(2.0 * res.params[ct]),
+                    "significant": bool(p < self.alpha),
+                }
+            )
+        mse = float(res.ssr / res.df_resid)
         rows.append(
             {
                 "term": "Residual",
                 "df": int(res.df_resid),
-                "sum_sq": float(res.ssr),
+                "sum_sq": float(table.loc["Residual", "sum_sq"]),
                 "mean_sq": mse,
                 "F": float("nan"),
                 "p": float("nan"),
@@ -293,6 +333,7 @@ class AnovaScreening:
         return {
             "alpha": self.alpha,
             "method": self.method_,
+            "method_reason": self.method_reason_,
             "factor_names": list(self.factor_names_),
             "table": [dict(r) for r in self.table_],
             "aliased": dict(self.aliased_),
@@ -314,6 +355,11 @@ def screen_responses(
     Returns the union of the significant parameters (in column order) and the fitted
     :class:`AnovaScreening` per response. ``kwargs`` go to :class:`AnovaScreening`.
     """
-    fitted = {r: AnovaScreening(**kwargs).fit(X, y, names) for r, y in responses.items()}
+    fitted = {}
+    for r, y in responses.items():
+        try:
+            fitted[r] = AnovaScreening(**kwargs).fit(X, y, names)
+        except ValueError as exc:
+            raise ValueError(f"response '{r}': {exc}") from exc
     union = {f for s in fitted.values() for f in s.significant_factors_}
     return [f for f in names if f in union], fitted

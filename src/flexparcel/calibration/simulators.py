@@ -24,7 +24,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 __all__ = [
     "SimulatorInfo",
@@ -48,6 +48,10 @@ class SimulatorInfo:
     version: str = "1"
     responses: tuple[str, ...] = ()
     description: str = ""
+    #: Parameter name -> unit the simulator takes (empty: not declared, nothing is checked).
+    parameters: Mapping[str, str] = field(default_factory=dict)
+    #: Setup options it accepts (empty: not declared).
+    setup: tuple[str, ...] = ()
 
 
 _REGISTRY: dict[str, SimulatorInfo] = {}
@@ -60,18 +64,28 @@ def register_simulator(
     responses: Iterable[str] = (),
     description: str = "",
     replace: bool = False,
+    parameters: Mapping[str, str] | None = None,
+    setup: Iterable[str] = (),
 ):
     """Decorator registering ``func`` as simulator ``name``.
 
     ``version`` enters the run hash: bump it when the simulator's results change, so the study
-    store does not reuse stale runs.
+    store does not reuse stale runs. ``parameters`` (name -> unit) and ``setup`` (option names),
+    where given, let a study be checked before any run: an unknown parameter, a parameter in
+    another unit, or a fidelity level without the element size is refused by name.
     """
 
     def deco(func):
         if name in _REGISTRY and not replace and _REGISTRY[name].func is not func:
             raise ValueError(f"a simulator named {name!r} is already registered")
         _REGISTRY[name] = SimulatorInfo(
-            name, func, str(version), tuple(responses), description or (func.__doc__ or "")
+            name,
+            func,
+            str(version),
+            tuple(responses),
+            description or (func.__doc__ or ""),
+            dict(parameters or {}),
+            tuple(setup),
         )
         return func
 
@@ -79,14 +93,17 @@ def register_simulator(
 
 
 def _register_callable(name: str, obj) -> None:
-    """Register a plain callable under ``name``; its ``simulator_version`` and
-    ``simulator_responses`` attributes, where set, give the version and the responses."""
+    """Register a plain callable under ``name``; its ``simulator_version``,
+    ``simulator_responses``, ``simulator_parameters`` (name -> unit) and ``simulator_setup``
+    attributes, where set, give the version, the responses, the parameters and the setup."""
     if not callable(obj):
         raise ValueError(f"simulator {name!r}: {obj!r} is not callable")
     register_simulator(
         name,
         version=str(getattr(obj, "simulator_version", "1")),
         responses=tuple(getattr(obj, "simulator_responses", ())),
+        parameters=dict(getattr(obj, "simulator_parameters", {}) or {}),
+        setup=tuple(getattr(obj, "simulator_setup", ()) or ()),
     )(obj)
 
 
@@ -233,12 +250,23 @@ def _truth(params: Mapping[str, float], mode: str) -> dict[str, float]:
     version="1",
     responses=[r for rs in ANALYTIC_RESPONSES.values() for r in rs],
     description="closed-form toy consignment with known truth (tests and examples)",
+    parameters={n: v[2] for n, v in ANALYTIC_PARAMETERS.items()},
+    setup=(
+        "mode",
+        "noise",
+        "element_size_mm",
+        "delay_s",
+        "log_file",
+        "fail_first_dir",
+        "crash_first_dir",
+    ),
 )
 def analytic(
     params: Mapping[str, float],
     *,
     mode: str = "swing",
     noise: float = 0.003,
+    element_size_mm: float | None = None,
     delay_s: float = 0.0,
     log_file: str | None = None,
     fail_first_dir: str | None = None,
@@ -251,6 +279,14 @@ def analytic(
     ``youngs_modulus``, ``contact_stiffness`` and ``contact_damping`` only. ``friction`` and
     ``label_mass`` (and, for the drop, ``damping_ratio``) are accepted but inert: a screening
     must find them insignificant. Parameters are in the units of :data:`ANALYTIC_PARAMETERS`.
+
+    ``element_size_mm`` mimics a discretisation with a known bias (the low-fidelity level of a
+    multi-fidelity study): at 10 mm, or when not given, the responses are the ones above; at
+    ``h`` mm each response ``y`` becomes ``y * (1 - 0.05 e) + s * 0.2 e * (u - 0.5)`` with
+    ``e = (h - 10) / 10``, ``s`` the response's noise scale and ``u`` the unit coordinate of
+    ``youngs_modulus`` (a coarser mesh: stiffer, and the more so the stiffer the material).
+    The high level is then exactly ``y_high = y_low / (1 - 0.05 e) + smooth term``, the
+    autoregressive structure of Kennedy & O'Hagan (2000).
 
     Each response gets deterministic "noise" ``noise * scale * z`` with ``z`` in [-1, 1] a hash
     of all parameter values and ``scale`` from :data:`ANALYTIC_RESPONSES` (it mimics the
@@ -285,6 +321,13 @@ def analytic(
     if delay_s > 0:
         time.sleep(delay_s)
     truth = _truth(params, mode)
+    if element_size_mm is not None and float(element_size_mm) != 10.0:
+        e = (float(element_size_mm) - 10.0) / 10.0
+        uE = _unit("youngs_modulus", params["youngs_modulus"])
+        truth = {
+            r: v * (1.0 - 0.05 * e) + ANALYTIC_RESPONSES[mode][r] * 0.2 * e * (uE - 0.5)
+            for r, v in truth.items()
+        }
     out = {
         r: v + noise * ANALYTIC_RESPONSES[mode][r] * _jitter(params, f"{mode}.{r}")
         for r, v in truth.items()

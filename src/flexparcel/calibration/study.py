@@ -24,9 +24,10 @@ import contextlib
 import hashlib
 import json
 import math
+import os
 import tomllib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,7 @@ from flexparcel.calibration.designs import (
     latin_hypercube,
 )
 from flexparcel.calibration.execution import CampaignReport, run_campaign
+from flexparcel.calibration.multifidelity import CoKrigingSurrogate
 from flexparcel.calibration.optimise import NelderMeadCalibrator, weighted_error
 from flexparcel.calibration.parameters import Parameter, ParameterSpace, Target
 from flexparcel.calibration.screening import screen_responses
@@ -52,8 +54,13 @@ __all__ = [
     "StudyConfig",
     "ExperimentConfig",
     "load_study",
+    "scale_budget",
+    "FIDELITY_LEVELS",
     "Study",
 ]
+
+#: Fidelity levels a study may declare, cheapest first.
+FIDELITY_LEVELS = ("low", "high")
 
 #: Version of the study.toml format read by this module.
 STUDY_FORMAT_VERSION = 1
@@ -92,6 +99,12 @@ class ExperimentConfig:
     design_seed: int | None = None
     screening: ScreeningConfig | None = None
     description: str = ""
+    #: Per-experiment bounds overriding the parameters' own: name -> (lower, upper).
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    #: Latin-hypercube runs at the high fidelity level (multi-fidelity studies only).
+    high_runs: int | None = None
+    #: Stated wall time of one run [s] for the dry-run plan when the store has none measured.
+    estimated_run_s: float | None = None
 
     @property
     def responses(self) -> tuple[str, ...]:
@@ -124,6 +137,32 @@ class StudyConfig:
     threads: int = 1
     scheduler: str | None = None
     validate: bool = True
+    #: Fidelity levels: ``{"low": setup, "high": setup}``, or None for a single-fidelity study.
+    fidelity: Mapping[str, Mapping] | None = None
+
+    def experiment_space(self, experiment: str, names: Sequence[str] | None = None):
+        """The parameters of ``experiment`` (or ``names`` of them) with its own bounds applied."""
+        exp = self.experiments[experiment]
+        names = exp.parameters if names is None else names
+        return ParameterSpace(_bounded(self.parameters[n], exp.bounds.get(n)) for n in names)
+
+    def setup_of(self, experiment: str, level: str | None = None) -> dict:
+        """The simulator setup of ``experiment`` at fidelity ``level`` (``None``: the level the
+        screen and the design use: ``low`` in a multi-fidelity study)."""
+        setup = dict(self.experiments[experiment].setup)
+        if self.fidelity is not None:
+            setup.update(self.fidelity[level or "low"])
+        return setup
+
+
+def _bounded(p: Parameter, bounds) -> Parameter:
+    """``p`` with ``bounds`` (lower, upper) instead of its own; a nominal value outside them
+    falls back to the midpoint of the new range."""
+    if bounds is None:
+        return p
+    lo, hi = bounds
+    nominal = p.nominal if p.nominal is not None and lo <= p.nominal <= hi else None
+    return replace(p, lower=float(lo), upper=float(hi), nominal=nominal)
 
 
 class _Fields:
@@ -195,6 +234,7 @@ _TOP_KEYS = (
     "surrogate",
     "optimisation",
     "validation",
+    "fidelity",
 )
 
 
@@ -332,6 +372,18 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
                     "parameters", f"unknown parameter {p!r} (defined: {', '.join(space.names)})"
                 )
     va = _Fields(path, "validation", top.get("validation", "table", {}), ("enabled",))
+    fidelity = _parse_fidelity(path, top, experiments)
+    # The optimiser searches where every experiment that varies a parameter has data.
+    for p in space.names:
+        box = [e.bounds.get(p, (space[p].lower, space[p].upper)) for e in experiments.values()]
+        box = [b for b, e in zip(box, experiments.values(), strict=True) if p in e.parameters]
+        lo, hi = max(b[0] for b in box), min(b[1] for b in box)
+        if not lo < hi:
+            _Fields(path, f"parameters.{p}", {}, ()).fail(
+                "bounds",
+                f"the experiments' bounds of {p} do not overlap (common range [{lo:g}, {hi:g}]); "
+                "the calibrated value must lie in every experiment's range",
+            )
 
     return StudyConfig(
         path=path,
@@ -355,7 +407,83 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
         threads=threads,
         scheduler=ex.get("scheduler", "str"),
         validate=va.get("enabled", "bool", True),
+        fidelity=fidelity,
     )
+
+
+def _parse_fidelity(path: Path, top: _Fields, experiments) -> dict | None:
+    """``[fidelity.low]`` and ``[fidelity.high]``, each with its ``setup`` (merged over every
+    experiment's own setup; the screen and the design run at ``low``, ``high_runs`` and the
+    validation at ``high``)."""
+    table = top.get("fidelity", "table")
+    if table is None:
+        for e in experiments.values():
+            if e.high_runs is not None:
+                _Fields(path, f"experiments.{e.name}.design", {}, ()).fail(
+                    "high_runs", "only a study with [fidelity.low] and [fidelity.high] takes it"
+                )
+        return None
+    fid = _Fields(path, "fidelity", table, FIDELITY_LEVELS)
+    levels = {}
+    for level in FIDELITY_LEVELS:
+        lf = _Fields(path, f"fidelity.{level}", fid.get(level, "table", required=True), ("setup",))
+        setup = lf.get("setup", "table")
+        if not setup:
+            lf.fail(
+                "setup",
+                "missing: a fidelity level is its simulator setup, e.g. "
+                "setup = { element_size_mm = 25 } (required, not empty)",
+            )
+        levels[level] = dict(setup)
+    if levels["low"] == levels["high"]:
+        fid.fail("high", "its setup equals the low level's: the levels would be the same runs")
+    for e in experiments.values():
+        ef = _Fields(path, f"experiments.{e.name}", {}, ())
+        for level, setup in levels.items():
+            both = sorted(set(setup) & set(e.setup))
+            if both:
+                ef.fail(
+                    "setup",
+                    f"{both[0]!r} is set here and in [fidelity.{level}] setup; set it in one place",
+                )
+        if e.high_runs is None:
+            _Fields(path, f"experiments.{e.name}.design", {}, ()).fail(
+                "high_runs",
+                "missing: a multi-fidelity study needs the number of high-fidelity runs of "
+                "each experiment (the few accurate runs that correct the low level)",
+            )
+    return levels
+
+
+def scale_budget(
+    config: StudyConfig, factor: float | None = None, runs: Mapping[str, int] | None = None
+) -> StudyConfig:
+    """A smaller (or larger) campaign: every Latin hypercube's run count times ``factor``
+    (at least what the surrogate's hold-out and CV need: ``2 cv_folds + 1``; high-fidelity runs
+    at least 3), then ``runs`` = ``{experiment: N}`` setting an experiment's design runs. The
+    screening factorials are not scaled: a full factorial is all or nothing (declare a
+    fractional one in the study to shrink it). The design stage *extends* a smaller design
+    later, so a pilot campaign's runs are kept when the full one follows."""
+    if factor is not None and not (math.isfinite(factor) and factor > 0):
+        raise ValueError(f"--budget must be a positive factor, got {factor!r}")
+    floor = 2 * config.cv_folds + (1 if config.holdout_fraction > 0 else 0)
+    experiments = {}
+    for name, e in config.experiments.items():
+        n, nh = e.design_runs, e.high_runs
+        if factor is not None:
+            n = max(floor, int(round(n * factor)))
+            if nh is not None:
+                nh = max(3, int(round(nh * factor)))
+        experiments[name] = replace(e, design_runs=n, high_runs=nh)
+    for name, n in (runs or {}).items():
+        if name not in experiments:
+            raise ValueError(
+                f"--runs {name}={n}: no experiment {name!r} (experiments: {', '.join(experiments)})"
+            )
+        if n < 2:
+            raise ValueError(f"--runs {name}={n}: at least 2 runs")
+        experiments[name] = replace(experiments[name], design_runs=int(n))
+    return replace(config, experiments=experiments)
 
 
 def _simulator_reference(path: Path, name: str) -> str:
@@ -382,6 +510,8 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
             "design",
             "screening",
             "description",
+            "bounds",
+            "estimated_run_s",
         ),
     )
     simulator = _simulator_reference(path, f.get("simulator", "str", required=True))
@@ -392,6 +522,24 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
             f.fail("parameters", f"unknown parameter {p!r} (defined: {', '.join(space.names)})")
     if len(set(pnames)) != len(pnames) or not pnames:
         f.fail("parameters", "must list distinct parameters, at least one")
+    bounds = {}
+    for p, b in f.get("bounds", "table", {}).items():
+        if p not in pnames:
+            f.fail("bounds", f"{p!r} is not one of this experiment's parameters")
+        if not (
+            isinstance(b, list)
+            and len(b) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in b)
+        ):
+            f.fail("bounds", f"{p}: must be [lower, upper] (two numbers), got {b!r}")
+        try:
+            _bounded(space[p], (float(b[0]), float(b[1])))
+        except ValueError as exc:
+            f.fail("bounds", f"{p}: {exc}")
+        bounds[p] = (float(b[0]), float(b[1]))
+    estimated = f.get("estimated_run_s", "num")
+    if estimated is not None and estimated <= 0:
+        f.fail("estimated_run_s", "must be > 0 [s]")
     ttable = f.get("targets", "table")
     if not ttable:
         f.fail("targets", "missing: every experiment needs at least one target response")
@@ -399,7 +547,12 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
     for rname, tdata in ttable.items():
         if isinstance(tdata, (int, float)) and not isinstance(tdata, bool):
             tdata = {"value": tdata}
-        tf = _Fields(path, f"{t}.targets.{rname}", tdata, ("value", "weight", "spread", "unit"))
+        tf = _Fields(
+            path,
+            f"{t}.targets.{rname}",
+            tdata,
+            ("value", "weight", "spread", "unit", "transform", "log_offset"),
+        )
         value = tf.get("value", "num", required=True)
         weight = tf.get("weight", "num")
         spread = tf.get("spread", "num")
@@ -407,6 +560,14 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
             tf.fail("weight", "must be > 0")
         if spread is not None and spread < 0:
             tf.fail("spread", "must be >= 0")
+        transform = tf.get("transform", "str", "none")
+        if transform not in ("none", "log"):
+            tf.fail("transform", f"must be 'none' or 'log', got {transform!r}")
+        log_offset = float(tf.get("log_offset", "num", 0.0))
+        if log_offset < 0:
+            tf.fail("log_offset", "must be >= 0 (log(y + log_offset) is modelled)")
+        if "log_offset" in tdata and transform != "log":
+            tf.fail("log_offset", "only a transform = 'log' takes a log_offset")
         targets.append(
             Target(
                 ename,
@@ -415,13 +576,18 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
                 weight=None if weight is None else float(weight),
                 spread=None if spread is None else float(spread),
                 unit=tf.get("unit", "str", ""),
+                transform=transform,
+                log_offset=log_offset,
             )
         )
     monitor = tuple(f.str_list("monitor", []))
-    d = _Fields(path, f"{t}.design", f.get("design", "table", {}), ("runs", "seed"))
+    d = _Fields(path, f"{t}.design", f.get("design", "table", {}), ("runs", "seed", "high_runs"))
     runs = d.get("runs", "int", 50)
     if runs < 2:
         d.fail("runs", "must be >= 2")
+    high_runs = d.get("high_runs", "int")
+    if high_runs is not None and high_runs < 2:
+        d.fail("high_runs", "must be >= 2 (co-kriging needs at least two high-fidelity runs)")
     screening = None
     if "screening" in edata:
         s = _Fields(
@@ -465,6 +631,9 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
         design_seed=d.get("seed", "int"),
         screening=screening,
         description=f.get("description", "str", ""),
+        bounds=bounds,
+        high_runs=high_runs,
+        estimated_run_s=None if estimated is None else float(estimated),
     )
 
 
@@ -560,9 +729,11 @@ class Study:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def _spec(self, exp: ExperimentConfig, params: Mapping[str, float]) -> RunSpec:
+    def _spec(
+        self, exp: ExperimentConfig, params: Mapping[str, float], level: str | None = None
+    ) -> RunSpec:
         info = get_simulator(exp.simulator, self.config.simulator_modules)
-        return RunSpec(exp.simulator, info.version, exp.setup, params)
+        return RunSpec(exp.simulator, info.version, self.config.setup_of(exp.name, level), params)
 
     def _campaign(self, label: str, batches: list[tuple[ExperimentConfig, list[str]]]):
         keys, expect = [], {}
@@ -618,7 +789,7 @@ class Study:
         for exp in self.config.experiments.values():
             if exp.screening is None:
                 continue
-            sub = self.config.parameters.subspace(exp.parameters)
+            sub = self.config.experiment_space(exp.name)
             if exp.screening.design == "full-factorial":
                 C = full_factorial(sub.dim)
             else:
@@ -645,14 +816,17 @@ class Study:
                 )
             responses = {r: np.array([row["responses"][r] for row in rows]) for r in exp.responses}
             sc = exp.screening
-            significant, fitted = screen_responses(
-                C,
-                responses,
-                list(exp.parameters),
-                alpha=sc.alpha,
-                interactions=sc.interactions,
-                method=sc.method,
-            )
+            try:
+                significant, fitted = screen_responses(
+                    C,
+                    responses,
+                    list(exp.parameters),
+                    alpha=sc.alpha,
+                    interactions=sc.interactions,
+                    method=sc.method,
+                )
+            except ValueError as exc:
+                raise StudyConfigError(f"stage 'screen', experiment '{exp.name}': {exc}") from exc
             result = {
                 "design": sc.design,
                 "generators": list(sc.generators),
@@ -662,11 +836,7 @@ class Study:
                 "responses": {r: v.tolist() for r, v in responses.items()},
                 "anova": {r: s.to_dict() for r, s in fitted.items()},
                 "significant": significant,
-                "frozen": {
-                    p: self.config.parameters[p].nominal_value
-                    for p in exp.parameters
-                    if p not in significant
-                },
+                "frozen": {p: sub[p].nominal_value for p in exp.parameters if p not in significant},
             }
             if not significant:
                 raise RuntimeError(
@@ -682,12 +852,9 @@ class Study:
         batches, out = [], {}
         for exp in self.config.experiments.values():
             active = self.active_parameters(exp)
-            sub = self.config.parameters.subspace(active)
-            frozen = {
-                p: self.config.parameters[p].nominal_value
-                for p in exp.parameters
-                if p not in active
-            }
+            full = self.config.experiment_space(exp.name)
+            sub = full.subspace(active)
+            frozen = {p: full[p].nominal_value for p in exp.parameters if p not in active}
             seed = (
                 exp.design_seed
                 if exp.design_seed is not None
@@ -699,10 +866,12 @@ class Study:
                     "active": [[p.name, p.lower, p.upper, p.scale] for p in sub.parameters],
                     "frozen": frozen,
                     "simulator": [exp.simulator, info.version],
-                    "setup": exp.setup,
+                    "setup": self.config.setup_of(exp.name),
                     "seed": seed,
                 }
             )
+            if self.config.fidelity is not None:
+                fp = _fingerprint([fp, self.config.setup_of(exp.name, "high")])
             prev = self.store.get_result("design", exp.name)
             if prev is not None and prev["fingerprint"] != fp:
                 raise StudyConfigError(
@@ -748,19 +917,47 @@ class Study:
             )
             batches.append((exp, keys))
             out[exp.name] = {"active": active, "frozen": frozen, "runs": len(keys)}
+            if self.config.fidelity is not None:
+                # A few high-fidelity runs: their own seeded Latin hypercube over the same
+                # active parameters (the co-kriging needs no nesting in the low design).
+                U = latin_hypercube(exp.high_runs, sub.dim, random_state=_seed(seed, "high"))
+                points = [dict(p, **frozen) for p in sub.as_dicts(sub.from_unit(U))]
+                self.store.delete_design("design-high", exp.name)
+                hkeys = self.store.add_design(
+                    "design-high", exp.name, [self._spec(exp, p, "high") for p in points]
+                )
+                batches.append((exp, hkeys))
+                out[exp.name]["high_runs"] = len(hkeys)
         self._campaign("design", batches)
         for exp, keys in batches:
             counts = self.store.status_counts(keys)
-            out[exp.name]["status"] = counts
+            key = "status" if "status" not in out[exp.name] else "high_status"
+            out[exp.name][key] = counts
         return out
 
-    def _surrogates(self, exp: ExperimentConfig, fit: dict) -> dict[str, GPRSurrogate]:
-        sub = self.config.parameters.subspace(fit["active"])
+    def _surrogates(self, exp: ExperimentConfig, fit: dict) -> dict:
+        """The fitted surrogates of ``exp``, rebuilt from the store: ``{response: model}``
+        (:class:`GPRSurrogate`, or :class:`CoKrigingSurrogate` in a multi-fidelity study)."""
+        sub = self.config.experiment_space(exp.name, fit["active"])
         rows = self.store.get_runs(fit["run_keys"])
         X = sub.from_dicts(r["params"] for r in rows)
+        if "high_run_keys" not in fit:
+            return {
+                r: GPRSurrogate.from_dict(
+                    fit["responses"][r], sub, X, [row["responses"][r] for row in rows]
+                )
+                for r in fit["responses"]
+            }
+        high = self.store.get_runs(fit["high_run_keys"])
+        Xh = sub.from_dicts(r["params"] for r in high)
         return {
-            r: GPRSurrogate.from_dict(
-                fit["responses"][r], sub, X, [row["responses"][r] for row in rows]
+            r: CoKrigingSurrogate.from_dict(
+                fit["responses"][r],
+                sub,
+                X,
+                [row["responses"][r] for row in rows],
+                Xh,
+                [row["responses"][r] for row in high],
             )
             for r in fit["responses"]
         }
@@ -785,7 +982,7 @@ class Study:
         for exp in c.experiments.values():
             design = self._require("design", exp.name, "fit", "design")
             active = design["active"]
-            sub = c.parameters.subspace(active)
+            sub = c.experiment_space(exp.name, active)
             rows, done = self._done_rows("design", exp, exp.design_runs)
             if not rows:
                 raise StudyConfigError(
@@ -807,17 +1004,33 @@ class Study:
                 "responses": {},
                 "range": {},
             }
+            high = []
+            if c.fidelity is not None:
+                hrows = self.store.get_runs(self.store.design_keys("design-high", exp.name))
+                high = [r for r in hrows if r["status"] == "done"]
+                result["high_run_keys"] = [r["run_key"] for r in high]
+                result["n_high_failed"] = len(hrows) - len(high)
+                Xh = sub.from_dicts(r["params"] for r in high)
             for t in exp.targets:
                 y = np.array([r["responses"][t.response] for r in done])
+                common = dict(
+                    kernels=c.kernels,
+                    cv_folds=c.cv_folds,
+                    holdout_fraction=c.holdout_fraction,
+                    n_restarts_optimizer=c.gp_restarts,
+                    random_state=_seed(c.random_state, exp.name, t.response, "gpr"),
+                    transform=t.transform,
+                    log_offset=t.log_offset,
+                    name=t.response,
+                )
                 try:
-                    gp = GPRSurrogate(
-                        sub,
-                        kernels=c.kernels,
-                        cv_folds=c.cv_folds,
-                        holdout_fraction=c.holdout_fraction,
-                        n_restarts_optimizer=c.gp_restarts,
-                        random_state=_seed(c.random_state, exp.name, t.response, "gpr"),
-                    ).fit(X, y)
+                    if c.fidelity is None:
+                        gp = GPRSurrogate(sub, **common).fit(X, y)
+                    else:
+                        yh = np.array([r["responses"][t.response] for r in high])
+                        gp = CoKrigingSurrogate(sub, **common).fit(X, y, Xh, yh)
+                        # the weights 1/range come from the high level (the calibrated one)
+                        y = yh
                 except ValueError as exc:
                     raise StudyConfigError(
                         f"stage 'fit', experiment '{exp.name}', response '{t.response}': {exc} "
@@ -833,6 +1046,151 @@ class Study:
         if bar is not None:
             bar.close()
         return out
+
+    def optimisation_space(self, names: Sequence[str]) -> ParameterSpace:
+        """The optimiser's box: per parameter the intersection of the bounds of every
+        experiment that takes it (each surrogate is only trusted inside its own design)."""
+        c = self.config
+        params = []
+        for n in names:
+            boxes = [
+                c.experiment_space(e.name, [n])[n]
+                for e in c.experiments.values()
+                if n in e.parameters
+            ]
+            lo, hi = max(p.lower for p in boxes), min(p.upper for p in boxes)
+            params.append(_bounded(c.parameters[n], (lo, hi)))
+        return ParameterSpace(params)
+
+    def check(self) -> None:
+        """Check the study against its simulators before any run; raises
+        :class:`StudyConfigError` naming the field.
+
+        Each experiment's simulator must resolve; where it declares its parameters (name ->
+        unit) every listed parameter must be one of them, in the same unit; where it declares
+        its setup options and takes ``element_size_mm``, every fidelity level must set it.
+        Resolving a simulator may import it (an entry point): this runs in the controlling
+        process at run time, never when :mod:`flexparcel.calibration` is imported.
+        """
+        c = self.config
+        for exp in c.experiments.values():
+            where = f"{c.path}: [experiments.{exp.name}]"
+            try:
+                info = get_simulator(exp.simulator, c.simulator_modules)
+            except ValueError as exc:
+                raise StudyConfigError(f"{where} simulator: {exc}") from None
+            if info.parameters:
+                for p in exp.parameters:
+                    if p not in info.parameters:
+                        raise StudyConfigError(
+                            f"{where} parameters: {p!r} is not a parameter of simulator "
+                            f"'{exp.simulator}' (it takes: "
+                            + ", ".join(f"{k} [{u}]" for k, u in info.parameters.items())
+                            + ")"
+                        )
+                    unit, want = c.parameters[p].unit, info.parameters[p]
+                    if unit != want:
+                        stated = f"'{unit}'" if unit else "not stated"
+                        raise StudyConfigError(
+                            f"{c.path}: [parameters.{p}] unit: {stated}, but simulator "
+                            f"'{exp.simulator}' (experiment '{exp.name}') takes {p} in "
+                            f"'{want}'; values are handed over unconverted, so state the "
+                            f'bounds in {want} and set unit = "{want}"'
+                        )
+            if c.fidelity is not None and "element_size_mm" in info.setup:
+                for level, setup in c.fidelity.items():
+                    if "element_size_mm" not in setup:
+                        raise StudyConfigError(
+                            f"{c.path}: [fidelity.{level}] setup: element_size_mm missing; "
+                            f"simulator '{exp.simulator}' (experiment '{exp.name}') is a "
+                            "discretised model and its fidelity levels are its element sizes"
+                        )
+
+    def plan(self) -> dict:
+        """What a full run of the study would simulate, and what it would cost.
+
+        Per stage and experiment: the runs, the fidelity level, and the cost of one run: the
+        median wall time of the store's finished runs of that simulator and setup
+        (``"measured"``), else the experiment's ``estimated_run_s`` (``"stated"``), else unknown.
+        Reads the store only if it exists (a dry run creates nothing).
+        """
+        c = self.config
+        walls: dict[tuple, list[float]] = {}
+        if self.store_path.exists():
+            with StudyStore(self.store_path) as store:
+                for r in store.all_runs():
+                    if r["status"] == "done" and r["wall_s"] is not None:
+                        key = (r["simulator"], json.dumps(r["setup"], sort_keys=True))
+                        walls.setdefault(key, []).append(float(r["wall_s"]))
+
+        def cost(exp, level):
+            setup = json.dumps(c.setup_of(exp.name, level), sort_keys=True)
+            w = walls.get((exp.simulator, setup))
+            if w:
+                return float(np.median(w)), f"measured ({len(w)} runs in the store)"
+            if exp.estimated_run_s is not None:
+                return exp.estimated_run_s, "stated in the study (estimated_run_s)"
+            return None, "unknown - run one"
+
+        low = "low" if c.fidelity is not None else None
+        high = "high" if c.fidelity is not None else None
+        rows = []
+        for exp in c.experiments.values():
+            if exp.screening is not None:
+                k = len(exp.parameters)
+                n = 2**k
+                if exp.screening.design == "fractional-factorial":
+                    n = 2 ** (k - len(exp.screening.generators))
+                what = f"2^{k} full factorial" if n == 2**k else f"2^({k}-"
+                if n != 2**k:
+                    what += f"{len(exp.screening.generators)}) fractional factorial"
+                what += f", ANOVA at alpha = {exp.screening.alpha}"
+                rows.append(("screen", exp, low, n, what))
+            k_act = "screened" if exp.screening is not None else str(len(exp.parameters))
+            rows.append(
+                ("design", exp, low, exp.design_runs, f"Latin hypercube over {k_act} parameters")
+            )
+            if c.fidelity is not None:
+                rows.append(("design", exp, high, exp.high_runs, "high-fidelity Latin hypercube"))
+        if c.validate:
+            for exp in c.experiments.values():
+                rows.append(("validate", exp, high, 1, "the simulator at the optimum"))
+        out_rows, total, unknown = [], 0.0, 0
+        for stage, exp, level, n, what in rows:
+            each, source = cost(exp, level)
+            if each is None:
+                unknown += n
+            else:
+                total += n * each
+            out_rows.append(
+                {
+                    "stage": stage,
+                    "experiment": exp.name,
+                    "simulator": exp.simulator,
+                    "level": level,
+                    "setup": c.setup_of(exp.name, level),
+                    "runs": n,
+                    "what": what,
+                    "run_s": each,
+                    "cost_source": source,
+                    "total_s": None if each is None else n * each,
+                }
+            )
+        workers = self.workers if self.workers else (os.cpu_count() or 1)
+        return {
+            "study": c.name,
+            "rows": out_rows,
+            "runs": sum(r["runs"] for r in out_rows),
+            "known_s": total,
+            "unknown_runs": unknown,
+            "workers": workers,
+            "surrogate": (
+                f"GPR, kernel by {c.cv_folds}-fold CV among {', '.join(c.kernels)}, "
+                f"{c.holdout_fraction:.0%} hold-out"
+                + ("; co-kriging of the low and high levels" if c.fidelity else "")
+            ),
+            "optimiser": f"Nelder-Mead from {c.opt_starts} starts, weights 1/range (eq. 11)",
+        }
 
     def calibrated_parameters(self) -> list[str]:
         """Parameters the optimiser varies: ``[optimisation].parameters`` or all active ones."""
@@ -855,7 +1213,7 @@ class Study:
         fits = {e: self._require("fit", e, "optimise", "fit") for e in c.experiments}
         surrogates = {e: self._surrogates(c.experiments[e], fits[e]) for e in c.experiments}
         names = self.calibrated_parameters()
-        space = c.parameters.subspace(names)
+        space = self.optimisation_space(names)
         nominal = {p.name: p.nominal_value for p in c.parameters.parameters}
         targets = [t for e in c.experiments.values() for t in e.targets]
         z_target = np.array([t.value for t in targets])
@@ -872,7 +1230,8 @@ class Study:
         plan = []
         for e, fit in fits.items():
             cols = [names.index(p) if p in names else None for p in fit["active"]]
-            fixed = np.array([nominal[p] for p in fit["active"]])
+            own = c.experiment_space(e)
+            fixed = np.array([own[p].nominal_value for p in fit["active"]])
             rs = [t.response for t in c.experiments[e].targets]
             plan.append((e, cols, fixed, rs))
 
@@ -932,7 +1291,8 @@ class Study:
         batches = []
         for exp in c.experiments.values():
             params = {p: opt["optimum"][p] for p in exp.parameters}
-            keys = self.store.add_design("validation", exp.name, [self._spec(exp, params)])
+            level = "high" if c.fidelity is not None else None
+            keys = self.store.add_design("validation", exp.name, [self._spec(exp, params, level)])
             batches.append((exp, keys))
         self._campaign("validation", batches)
         pred = {(t["experiment"], t["response"]): t for t in opt["targets"]}
@@ -992,6 +1352,8 @@ class Study:
             design, result = names[s]
             if design:
                 self.store.delete_design(design)
+                if design == "design":
+                    self.store.delete_design("design-high")
             if result:
                 self.store.delete_results(result)
 
@@ -1000,6 +1362,7 @@ class Study:
         unknown = [s for s in stages if s not in STAGES]
         if unknown:
             raise ValueError(f"unknown stage {unknown[0]!r}; stages: {', '.join(STAGES)}")
+        self.check()
         out = {}
         for s in STAGES:
             if s not in stages:

@@ -10,9 +10,19 @@ are comparable across parameters. The kernel is chosen among explicit candidates
 each with one length scale per input dimension (automatic relevance determination) and a white
 noise term that absorbs the simulator's numerical jitter. The choice follows the paper: the runs
 are split once into 90 % for model selection and 10 % that stay untouched; the kernel with the
-lowest mean RMSE over a 5-fold cross-validation on the 90 % wins; its RMSE on the untouched 10 %
-(trained on the 90 %) is the reported accuracy. The final model is then refitted on all runs, as
-the paper's contour plots are ("generated with the whole dataset").
+lowest mean RMSE over a 5-fold cross-validation on the 90 % wins (scikit-learn's
+``cross_val_predict`` over fixed ``KFold`` splits, the RMSE of each fold from its out-of-fold
+predictions); its RMSE on the untouched 10 % (trained on the 90 %) is the reported accuracy. The
+final model is then refitted on all runs, as the paper's contour plots are ("generated with the
+whole dataset").
+
+A response may be modelled through a log transform (``transform="log"``: the GP models
+``log(y + offset)``), for responses that span decades or approach zero (a rebound near 0, a second
+swing from 1 to 100 mm), where a GP in the response itself smears the small values. Everything
+visible stays in the response's own units: the CV and hold-out RMSEs are computed from
+back-transformed predictions, :meth:`GPRSurrogate.predict` returns ``exp(mu) - offset`` (the
+median of the log-normal predictive distribution) and a standard deviation by the delta method,
+``exp(mu) * sigma``.
 """
 
 from __future__ import annotations
@@ -24,7 +34,7 @@ import numpy as np
 
 from flexparcel.calibration.parameters import ParameterSpace
 
-__all__ = ["KERNELS", "make_kernel", "GPRSurrogate"]
+__all__ = ["KERNELS", "TRANSFORMS", "make_kernel", "GPRSurrogate", "ResponseTransform"]
 
 #: Candidate kernels: name -> Matern smoothness ``nu`` (``None`` for the RBF kernel).
 KERNELS: dict[str, float | None] = {
@@ -55,6 +65,51 @@ def make_kernel(name: str, dim: int):
     return ConstantKernel(1.0, (1e-3, 1e3)) * base + WhiteKernel(1e-4, (1e-10, 1e-1))
 
 
+#: Response transforms a surrogate may model through.
+TRANSFORMS = ("none", "log")
+
+
+class ResponseTransform:
+    """``z = log(y + offset)`` (``kind="log"``) or ``z = y`` (``"none"``) and back.
+
+    Module-level and picklable, so that scikit-learn can clone estimators that carry it.
+    """
+
+    def __init__(self, kind: str = "none", offset: float = 0.0):
+        if kind not in TRANSFORMS:
+            raise ValueError(f"transform must be one of {TRANSFORMS}, got {kind!r}")
+        if not np.isfinite(offset) or offset < 0:
+            raise ValueError(f"the log offset must be a finite number >= 0, got {offset!r}")
+        self.kind, self.offset = kind, float(offset)
+
+    def check(self, y) -> None:
+        """Raise if ``y`` cannot be transformed (log of a value <= -offset)."""
+        if self.kind == "log":
+            y = np.asarray(y, dtype=float)
+            if np.any(y + self.offset <= 0):
+                bad = float(np.min(y))
+                raise ValueError(
+                    f"a log transform needs y + offset > 0, but the response reaches {bad:g} "
+                    f"(offset {self.offset:g}); give a log offset (e.g. the response's resolution)"
+                    " or no transform"
+                )
+
+    def forward(self, y):
+        y = np.asarray(y, dtype=float)
+        return np.log(y + self.offset) if self.kind == "log" else y
+
+    def inverse(self, z):
+        z = np.asarray(z, dtype=float)
+        return np.exp(z) - self.offset if self.kind == "log" else z
+
+    def inverse_std(self, z, sd):
+        """Predictive standard deviation in response units (delta method for ``log``)."""
+        return np.exp(np.asarray(z)) * np.asarray(sd) if self.kind == "log" else np.asarray(sd)
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "offset": self.offset}
+
+
 def _rmse(a, b) -> float:
     return float(np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2)))
 
@@ -80,6 +135,10 @@ class GPRSurrogate:
         Refit the chosen kernel on all runs (hold-out included) after evaluating it.
     random_state:
         Seed of the hold-out split, the CV folds and the optimiser restarts.
+    transform, log_offset:
+        ``"log"``: model ``log(y + log_offset)`` (see the module text); ``"none"``: ``y``.
+    name:
+        The response's name, for error messages.
 
     Attributes
     ----------
@@ -107,6 +166,9 @@ class GPRSurrogate:
         Fitted length scales per input [unit-cube units].
     y_range_ : float
         ``max(y) - min(y)`` over the training data [response unit].
+
+    The CV, hold-out and predicted values are all in the response's own units, whatever the
+    transform.
     """
 
     def __init__(
@@ -119,6 +181,9 @@ class GPRSurrogate:
         n_restarts_optimizer: int = 5,
         refit_all: bool = True,
         random_state=None,
+        transform: str = "none",
+        log_offset: float = 0.0,
+        name: str = "",
     ):
         self.space = space
         self.kernels = kernels
@@ -127,6 +192,9 @@ class GPRSurrogate:
         self.n_restarts_optimizer = n_restarts_optimizer
         self.refit_all = refit_all
         self.random_state = random_state
+        self.transform = transform
+        self.log_offset = log_offset
+        self.name = name
 
     def _gpr(self, kernel, seed, optimizer="fmin_l_bfgs_b"):
         from sklearn.gaussian_process import GaussianProcessRegressor
@@ -147,25 +215,39 @@ class GPRSurrogate:
             # Hyper-parameters at their bounds are expected (an inert input's length scale
             # runs to the upper bound); the fit is still valid.
             warnings.simplefilter("ignore", ConvergenceWarning)
-            gpr.fit(U, y)
+            gpr.fit(U, self._tf.forward(y))
         return gpr
 
     def fit(self, X, y) -> GPRSurrogate:
         """Choose the kernel and fit; ``X`` physical, shape (n, d); ``y`` shape (n,)."""
-        from sklearn.model_selection import KFold
+        from sklearn.compose import TransformedTargetRegressor
+        from sklearn.exceptions import ConvergenceWarning
+        from sklearn.model_selection import KFold, cross_val_predict
 
         for k in self.kernels:
             if k not in KERNELS:
                 raise ValueError(f"unknown kernel {k!r}; choose from {', '.join(KERNELS)}")
         if not self.kernels:
             raise ValueError("at least one candidate kernel is needed")
+        self._tf = ResponseTransform(self.transform, self.log_offset)
         U = self.space.to_unit(X)
         y = np.asarray(y, dtype=float).ravel()
         n = len(y)
+        what = f"response '{self.name}'" if self.name else "the response"
         if U.shape[0] != n:
             raise ValueError(f"X has {U.shape[0]} runs but y has {n} values")
         if not np.all(np.isfinite(y)):
-            raise ValueError("the response contains non-finite values")
+            raise ValueError(f"{what} contains non-finite values")
+        if n and np.ptp(y) == 0.0:
+            raise ValueError(
+                f"{what} is constant over the design (all {n} runs give {y[0]:g}): a surrogate "
+                "of it is a constant and its default weight 1/range is undefined; widen the "
+                "parameter bounds, check the simulator's output, or drop it from the targets"
+            )
+        try:
+            self._tf.check(y)
+        except ValueError as exc:
+            raise ValueError(f"{what}: {exc}") from None
         n_hold = int(round(self.holdout_fraction * n))
         if self.holdout_fraction > 0:
             n_hold = max(n_hold, 1)
@@ -187,12 +269,20 @@ class GPRSurrogate:
         self.cv_rmse_folds_, self.cv_rmse_ = {}, {}
         cv_pred = {}
         for name in self.kernels:
-            pred = np.empty(n_sel)
-            fold_rmse = []
-            for tr, te in folds:
-                gpr = self._fit_one(name, U_sel[tr], y_sel[tr], seed)
-                pred[te] = gpr.predict(U_sel[te])
-                fold_rmse.append(_rmse(pred[te], y_sel[te]))
+            # The GP models the transformed response; the wrapper returns its predictions in
+            # the response's own units, so the CV criterion is an RMSE in those units.
+            est = TransformedTargetRegressor(
+                regressor=self._gpr(make_kernel(name, U.shape[1]), seed),
+                func=self._tf.forward,
+                inverse_func=self._tf.inverse,
+                check_inverse=False,
+            )
+            with warnings.catch_warnings():
+                # Hyper-parameters at their bounds are expected (an inert input's length
+                # scale runs to the upper bound); the fit is still valid.
+                warnings.simplefilter("ignore", ConvergenceWarning)
+                pred = cross_val_predict(est, U_sel, y_sel, cv=folds)
+            fold_rmse = [_rmse(pred[te], y_sel[te]) for _, te in folds]
             cv_pred[name] = pred
             self.cv_rmse_folds_[name] = fold_rmse
             # The paper's criterion: the average of the per-fold RMSEs.
@@ -203,7 +293,7 @@ class GPRSurrogate:
 
         gpr = self._fit_one(self.kernel_name_, U_sel, y_sel, seed)
         if n_hold:
-            mu, sd = gpr.predict(U[self.holdout_index_], return_std=True)
+            mu, sd = self._predict_gpr(gpr, U[self.holdout_index_], True)
             self.holdout_pred_, self.holdout_std_ = mu, sd
             self.holdout_true_ = y[self.holdout_index_]
             self.holdout_rmse_ = _rmse(mu, self.holdout_true_)
@@ -214,6 +304,12 @@ class GPRSurrogate:
             gpr = self._fit_one(self.kernel_name_, U, y, seed)
         self._set_model(gpr, U if self.refit_all else U_sel, y if self.refit_all else y_sel)
         return self
+
+    def _predict_gpr(self, gpr, U, return_std: bool):
+        if not return_std:
+            return self._tf.inverse(gpr.predict(U))
+        z, sd = gpr.predict(U, return_std=True)
+        return self._tf.inverse(z), self._tf.inverse_std(z, sd)
 
     def _set_model(self, gpr, U, y) -> None:
         self.gpr_ = gpr
@@ -230,12 +326,11 @@ class GPRSurrogate:
         With ``return_std`` also the predictive standard deviation (GP posterior, white noise
         included) [response unit].
         """
-        U = self.space.to_unit(X)
-        return self.gpr_.predict(U, return_std=return_std)
+        return self._predict_gpr(self.gpr_, self.space.to_unit(X), return_std)
 
     def predict_unit(self, U, return_std: bool = False):
         """As :meth:`predict` with inputs in unit coordinates, shape (n, d)."""
-        return self.gpr_.predict(np.atleast_2d(U), return_std=return_std)
+        return self._predict_gpr(self.gpr_, np.atleast_2d(U), return_std)
 
     def to_dict(self) -> dict:
         """Learned state as JSON-serialisable data (training data excluded)."""
@@ -255,6 +350,7 @@ class GPRSurrogate:
             "cv_true": [float(v) for v in self.cv_true_],
             "length_scales": [float(v) for v in self.length_scales_],
             "refit_all": self.refit_all,
+            "transform": self._tf.to_dict(),
         }
         return out
 
@@ -266,7 +362,15 @@ class GPRSurrogate:
         in the same order. The hyper-parameters are taken as stored (no optimisation), so the
         rebuilt model predicts exactly as the original one.
         """
-        self = cls(space, kernels=(data["kernel"],), refit_all=data.get("refit_all", True))
+        tf = data.get("transform", {"kind": "none", "offset": 0.0})
+        self = cls(
+            space,
+            kernels=(data["kernel"],),
+            refit_all=data.get("refit_all", True),
+            transform=tf["kind"],
+            log_offset=tf["offset"],
+        )
+        self._tf = ResponseTransform(tf["kind"], tf["offset"])
         U = space.to_unit(X)
         y = np.asarray(y, dtype=float).ravel()
         if not data.get("refit_all", True):
@@ -276,7 +380,7 @@ class GPRSurrogate:
             np.asarray(data["theta"], dtype=float)
         )
         gpr = self._gpr(kernel, None, optimizer=None)
-        gpr.fit(U, y)
+        gpr.fit(U, self._tf.forward(y))
         self.kernel_name_ = data["kernel"]
         self.cv_rmse_ = dict(data["cv_rmse"])
         self.cv_rmse_folds_ = {k: list(v) for k, v in data["cv_rmse_folds"].items()}

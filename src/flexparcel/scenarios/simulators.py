@@ -155,12 +155,33 @@ def conveyor(params: Mapping[str, float], **setup: object) -> dict[str, float]:
     return {k: float(r.value) for k, r in scenario.responses(result).items() if r.reached}
 
 
+# Metadata a calibration study is checked against before any run (plain literals: reading them
+# imports no finite-element code). Parameter name -> unit: the paper's Table 3 names and units
+# (scenarios.consignment_tests.TABLE3_PARAMETERS) and the conveyor's CONVEYOR_PARAMETERS.
+TABLE3_UNITS = {
+    "youngs_modulus": "MPa",
+    "damping_ratio": "s",
+    "contact_stiffness_packaging_content": "N/mm",
+    "contact_damping_packaging_content": "Ns/mm",
+    "contact_stiffness_packaging_ground": "N/mm",
+    "contact_damping_packaging_ground": "Ns/mm",
+}
+CONVEYOR_UNITS = {
+    "belt_speed": "m/s",
+    "deflector_angle": "deg",
+    "start_speed": "m/s",
+    "content_stiffness": "N/mm",
+    "pair_reach": "m",
+}
+
 # the study store hashes runs with the simulator's version: bump it when results change
-for _f, _responses in (
-    (swing, ("first_swing_mm", "second_swing_mm")),
-    (drop_vertical, ("rebound_mm",)),
-    (drop_horizontal, ("rebound_mm",)),
-    (conveyor, ()),
+for _f, _responses, _units, _setup in (
+    (swing, ("first_swing_mm", "second_swing_mm"), TABLE3_UNITS, _SETUP),
+    (drop_vertical, ("rebound_mm",), TABLE3_UNITS, _SETUP),
+    (drop_horizontal, ("rebound_mm",), TABLE3_UNITS, _SETUP),
+    (conveyor, (), CONVEYOR_UNITS, _CONVEYOR_SETUP),
 ):
     _f.simulator_version = "1"
     _f.simulator_responses = _responses
+    _f.simulator_parameters = dict(_units)
+    _f.simulator_setup = tuple(sorted(_setup))
