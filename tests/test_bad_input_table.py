@@ -45,7 +45,7 @@ def _cli(argv: list[str], capsys) -> tuple[int, str]:
     capsys.readouterr()
     code = main(argv)
     err = capsys.readouterr().err
-    lines = [line for line in err.splitlines() if "error" in line or "removed" in line]
+    lines = [line for line in err.splitlines() if "error" in line]
     return code, "\n".join(lines) or err
 
 
@@ -117,8 +117,12 @@ def _builder_with_square():
 
 def _cli_case(argv_of: Callable[[Path], list[str]], capsys_box: dict) -> Callable[[Path], str]:
     def make(tmp: Path) -> str:
-        code, msg = _cli(argv_of(tmp), capsys_box["capsys"])
+        argv = argv_of(tmp)
+        code, msg = _cli(argv, capsys_box["capsys"])
         capsys_box["code"] = code
+        out = Path(argv[argv.index("--out") + 1])
+        if argv_of is _missing_survey_folder:
+            msg += f" (the folder out is {'kept' if out.exists() else 'removed'})"
         return msg
 
     return make
@@ -159,6 +163,10 @@ def _select_out_is_file(tmp: Path) -> list[str]:
 
 def _missing_survey(tmp: Path) -> list[str]:
     return ["select", str(tmp / "nowhere.csv"), "--out", str(tmp / "out")]
+
+
+def _missing_survey_folder(tmp: Path) -> list[str]:
+    return _missing_survey(tmp)  # its message also says what became of the folder
 
 
 def _unreadable_scene(tmp: Path) -> list[str]:
@@ -204,8 +212,8 @@ CASES: list[Case] = [
          r"select: error: --out .*taken\.txt: is an existing file, not a folder",
          _cli_case(_select_out_is_file, C), 2),
     Case("a failed run whose `--out` folder it created and left empty",
-         r"select: removed the empty output folder .*out",
-         _cli_case(_missing_survey, C), 2),
+         r"select: error: survey file not found: .*nowhere\.csv \(the folder out is removed\)",
+         _cli_case(_missing_survey_folder, C), 2),
     # ---- parameters on the command line
     Case("`--set damping_ratio=1e9`",
          r"error: --set damping_ratio=1e9: damping_ratio must be in \[0, 1\] s \(the bound "

@@ -179,7 +179,7 @@ def test_run_swing_from_snapshot(assembled, tmp_path, capsys):
             str(assembled / "snapshot.npz"), "--t-end", "0.01", "--out", str(out)]  # fmt: skip
     assert main(args) == 0
     err = capsys.readouterr().err
-    assert "swing small [" in err and "ETA" in err  # the progress bar
+    assert "swing small:" in err and "ETA" in err  # the progress bar
     r = json.loads((out / "responses.json").read_text())
     for key in ("first_swing_mm", "second_swing_mm", "simulated_s", "wall_s", "parameters"):
         assert key in r, key
@@ -226,7 +226,7 @@ def test_run_rejects_bad_input_before_assembling(tmp_path, capsys, assembled):
     err = _error(capsys, [*base, "--set", "stiffness=3"])
     assert "unknown parameter 'stiffness'" in err and "youngs_modulus" in err
     err = _error(capsys, [*base, "--set", "youngs_modulus=-1"])
-    assert "youngs_modulus must be > 0 MPa" in err
+    assert "youngs_modulus must be in (0, 100000] MPa" in err
     err = _error(capsys, [*base, "--set", "youngs_modulus"])
     assert "expected name=value, got 'youngs_modulus'" in err
     err = _error(capsys, [*base, "--t-end", "-1"])

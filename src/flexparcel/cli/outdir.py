@@ -103,7 +103,7 @@ class OutputFolder:
             return ""
         if not self.existed and not _has_files(self.out):
             _remove_empty_tree(self.out)
-            return f"removed the empty output folder {self.out}"
+            return ""  # nothing to tell: the folder is gone as if never made
         written = [p for p in _files_since(self.out, self.start) if p.name != FAILED_FILE]
         if not written:
             return ""
