@@ -8,6 +8,7 @@ the finite-element code):
   :func:`fractional_factorial` - designs;
 * :class:`AnovaScreening` - multi-factor ANOVA / Lenth screening of two-level factorials;
 * :class:`GPRSurrogate` - Gaussian-process surrogates with the kernel chosen by cross-validation;
+* :class:`CoKrigingSurrogate` - multi-fidelity co-kriging (Kennedy & O'Hagan 2000);
 * :func:`weighted_error`, :class:`NelderMeadCalibrator` - the paper's eq. (11) and its minimiser;
 * :class:`StudyStore`, :func:`run_campaign` - the resumable SQLite study store and parallel runs;
 * :func:`register_simulator` - how simulators make themselves known by name;
@@ -25,6 +26,7 @@ from flexparcel.calibration.designs import (
     latin_hypercube,
 )
 from flexparcel.calibration.execution import CampaignReport, run_campaign
+from flexparcel.calibration.multifidelity import CoKrigingSurrogate
 from flexparcel.calibration.optimise import NelderMeadCalibrator, range_weights, weighted_error
 from flexparcel.calibration.parameters import Parameter, ParameterSpace, Target
 from flexparcel.calibration.screening import AnovaScreening, lenth_pse, screen_responses
@@ -57,6 +59,7 @@ __all__ = [
     "screen_responses",
     "KERNELS",
     "GPRSurrogate",
+    "CoKrigingSurrogate",
     "weighted_error",
     "range_weights",
     "NelderMeadCalibrator",

@@ -175,7 +175,7 @@ def _contour_figure(figs, study, exp, r, surrogate, fit, target, optimum) -> str
     import matplotlib.pyplot as plt
 
     active = fit["active"]
-    space = study.config.parameters.subspace(active)
+    space = study.config.experiment_space(exp, active)
     x_opt = np.array([optimum[p] for p in active]) if optimum else space.nominal
     ls = np.asarray(fit["responses"][r]["length_scales"])
     if len(active) == 1:
@@ -322,6 +322,8 @@ def write_report(study) -> Path:
             for r, an in sc["anova"].items():
                 title = "ANOVA" if an["method"] == "anova" else "Lenth effects"
                 add(f"<h4>{title}: {html.escape(r)}</h4>")
+                if an.get("method_reason"):
+                    add(f"<p class='note'>method: {html.escape(an['method_reason'])}</p>")
                 trs = [
                     [row["term"], row["df"], row["sum_sq"], row["mean_sq"], row["F"], row["p"]]
                     + [row["effect"], None if row["term"] == "Residual" else row["significant"]]
@@ -385,13 +387,36 @@ def write_report(study) -> Path:
                 kcls = ["best" if k == gp["kernel"] else "" for k, *_ in krows]
                 folds = [f"fold {i + 1}" for i in range(len(krows[0]) - 2)]
                 add(_table(["kernel", "mean CV RMSE", *folds], krows, kcls))
-                add(
-                    f"<p>chosen kernel <b>{gp['kernel']}</b>: <code>"
-                    f"{html.escape(gp['kernel_repr'])}</code>; hold-out RMSE "
-                    f"<b>{_fmt(gp['holdout_rmse'])}</b> {html.escape(t.unit)} on "
-                    f"{len(gp['holdout_index'])} untouched runs (response range "
-                    f"{_fmt(fit['range'][r][0])} … {_fmt(fit['range'][r][1])}).</p>"
-                )
+                tf = gp.get("transform", {"kind": "none"})
+                if tf["kind"] == "log":
+                    add(
+                        f"<p class='note'>modelled as log({html.escape(r)} + "
+                        f"{_fmt(tf['offset'])}); all RMSEs and predictions here are "
+                        f"back-transformed to {html.escape(t.unit) or 'the response units'}.</p>"
+                    )
+                if "high_only_holdout_rmse" in gp:
+                    unit = html.escape(t.unit)
+                    add(
+                        f"<p>multi-fidelity (co-kriging, y_high = rho y_low + delta; Kennedy & "
+                        f"O'Hagan 2000): rho = <b>{_fmt(gp['rho'])}</b>, discrepancy kernel "
+                        f"<code>{html.escape(gp['delta_kernel_repr'])}</code>. Low level: kernel "
+                        f"<b>{gp['kernel']}</b> by CV (table above), hold-out RMSE "
+                        f"{_fmt(gp['low_holdout_rmse'])} {unit} on its own runs. On "
+                        f"{len(gp['high_holdout_index'])} held-out high-fidelity runs (of "
+                        f"{gp['n_high']}): fused surrogate RMSE <b>"
+                        f"{_fmt(gp['holdout_rmse'])}</b> {unit}, high-only GP trained on the "
+                        f"same high runs <b>{_fmt(gp['high_only_holdout_rmse'])}</b> {unit} "
+                        f"(high-level range {_fmt(fit['range'][r][0])} … "
+                        f"{_fmt(fit['range'][r][1])}).</p>"
+                    )
+                else:
+                    add(
+                        f"<p>chosen kernel <b>{gp['kernel']}</b>: <code>"
+                        f"{html.escape(gp['kernel_repr'])}</code>; hold-out RMSE "
+                        f"<b>{_fmt(gp['holdout_rmse'])}</b> {html.escape(t.unit)} on "
+                        f"{len(gp['holdout_index'])} untouched runs (response range "
+                        f"{_fmt(fit['range'][r][0])} … {_fmt(fit['range'][r][1])}).</p>"
+                    )
                 add(_residual_figure(figs, e, r, gp, t.unit))
                 add(_contour_figure(figs, study, e, r, surrogates[r], fit, t, optimum))
 
@@ -487,7 +512,18 @@ def write_report(study) -> Path:
                 "responses": {
                     r: {
                         k: g[k]
-                        for k in ("kernel", "kernel_repr", "cv_rmse", "holdout_rmse", "theta")
+                        for k in (
+                            "kernel",
+                            "kernel_repr",
+                            "cv_rmse",
+                            "holdout_rmse",
+                            "theta",
+                            "transform",
+                            "rho",
+                            "high_only_holdout_rmse",
+                            "low_holdout_rmse",
+                        )
+                        if k in g
                     }
                     for r, g in v["responses"].items()
                 },

@@ -282,11 +282,11 @@ def analytic(
 
     ``element_size_mm`` mimics a discretisation with a known bias (the low-fidelity level of a
     multi-fidelity study): at 10 mm, or when not given, the responses are the ones above; at
-    ``h`` mm each response ``y`` becomes ``y * (1 - 0.05 e) + s * 0.2 e * (u - 0.5)`` with
-    ``e = (h - 10) / 10``, ``s`` the response's noise scale and ``u`` the unit coordinate of
-    ``youngs_modulus`` (a coarser mesh: stiffer, and the more so the stiffer the material).
-    The high level is then exactly ``y_high = y_low / (1 - 0.05 e) + smooth term``, the
-    autoregressive structure of Kennedy & O'Hagan (2000).
+    ``h`` mm each response ``y`` becomes ``y * (1 - 0.05 e) * (1 + 0.1 e (u - 0.5))`` with
+    ``e = (h - 10) / 10`` and ``u`` the unit coordinate of ``youngs_modulus`` (a coarser mesh
+    is stiffer, the more so the stiffer the material). Signs are kept, and the levels are
+    related as ``y_high = y_low * g(u)``: in log scale exactly the autoregressive structure of
+    Kennedy & O'Hagan (2000) with rho = 1 and a smooth discrepancy.
 
     Each response gets deterministic "noise" ``noise * scale * z`` with ``z`` in [-1, 1] a hash
     of all parameter values and ``scale`` from :data:`ANALYTIC_RESPONSES` (it mimics the
@@ -324,10 +324,8 @@ def analytic(
     if element_size_mm is not None and float(element_size_mm) != 10.0:
         e = (float(element_size_mm) - 10.0) / 10.0
         uE = _unit("youngs_modulus", params["youngs_modulus"])
-        truth = {
-            r: v * (1.0 - 0.05 * e) + ANALYTIC_RESPONSES[mode][r] * 0.2 * e * (uE - 0.5)
-            for r, v in truth.items()
-        }
+        factor = (1.0 - 0.05 * e) * (1.0 + 0.1 * e * (uE - 0.5))
+        truth = {r: v * factor for r, v in truth.items()}
     out = {
         r: v + noise * ANALYTIC_RESPONSES[mode][r] * _jitter(params, f"{mode}.{r}")
         for r, v in truth.items()

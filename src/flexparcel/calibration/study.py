@@ -1130,7 +1130,7 @@ class Study:
                 return float(np.median(w)), f"measured ({len(w)} runs in the store)"
             if exp.estimated_run_s is not None:
                 return exp.estimated_run_s, "stated in the study (estimated_run_s)"
-            return None, "unknown - run one"
+            return None, "unknown \u2014 run one"
 
         low = "low" if c.fidelity is not None else None
         high = "high" if c.fidelity is not None else None
@@ -1156,6 +1156,7 @@ class Study:
             for exp in c.experiments.values():
                 rows.append(("validate", exp, high, 1, "the simulator at the optimum"))
         out_rows, total, unknown = [], 0.0, 0
+        rows.sort(key=lambda r: STAGES.index(r[0]))  # stable: experiments stay in file order
         for stage, exp, level, n, what in rows:
             each, source = cost(exp, level)
             if each is None:

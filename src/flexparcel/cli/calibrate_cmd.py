@@ -3,6 +3,11 @@
 Stages: screen, design, fit, optimise, validate, report (see ``docs/calibration.md``). Every stage
 records its runs and results in the study store, so an interrupted command resumes where it
 stopped when run again, and a single stage can be run later with ``--stage``.
+
+``--dry-run`` checks the study against its simulators and prints the plan (stages, run counts,
+the cost of a run measured in the store or stated in the study, the total) without running
+anything. ``--budget 0.2`` runs every Latin hypercube at a fifth of its size (a pilot campaign
+the full one later extends); ``--runs EXPERIMENT=N`` sets one experiment's design runs.
 """
 
 from __future__ import annotations
@@ -48,6 +53,24 @@ def register(subparsers) -> None:
     p.add_argument("--store", metavar="PATH", help="study store file (overrides the study file)")
     p.add_argument("--out", metavar="DIR", help="report folder (overrides the study file)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="check the study and print the plan (stages, runs, estimated cost); run nothing",
+    )
+    p.add_argument(
+        "--budget",
+        type=float,
+        metavar="FACTOR",
+        help="scale every Latin hypercube's runs by FACTOR (e.g. 0.1; at least 2 x cv_folds + 1 "
+        "runs; screening factorials are not scaled)",
+    )
+    p.add_argument(
+        "--runs",
+        action="append",
+        metavar="EXPERIMENT=N",
+        help="design runs of one experiment (repeatable; applied after --budget)",
+    )
     p.set_defaults(func=run)
 
 
@@ -63,12 +86,61 @@ def _stages(arg: list[str] | None) -> list[str]:
     return names
 
 
+def _runs(items: list[str] | None) -> dict[str, int]:
+    out = {}
+    for item in items or []:
+        name, sep, n = item.partition("=")
+        try:
+            out[name.strip()] = int(n)
+        except ValueError:
+            sep = ""
+        if not sep or not name.strip():
+            raise ValueError(f"--runs {item!r}: expected EXPERIMENT=N, e.g. swing=20")
+    return out
+
+
+def _duration(s: float) -> str:
+    if s < 120:
+        return f"{s:.0f} s"
+    if s < 7200:
+        return f"{s / 60:.1f} min"
+    return f"{s / 3600:.1f} h"
+
+
+def print_plan(plan: dict) -> None:
+    """The dry-run plan as a table."""
+    print(f"plan of study '{plan['study']}' (nothing is run)")
+    print(f"{'stage':9s} {'experiment':16s} {'level':5s} {'runs':>5s}  {'per run':>9s}  "
+          f"{'total':>9s}  what; cost from")  # fmt: skip
+    for r in plan["rows"]:
+        each = "?" if r["run_s"] is None else _duration(r["run_s"])
+        tot = "?" if r["total_s"] is None else _duration(r["total_s"])
+        print(
+            f"{r['stage']:9s} {r['experiment']:16s} {r['level'] or '-':5s} {r['runs']:5d}  "
+            f"{each:>9s}  {tot:>9s}  {r['what']}; {r['cost_source']}"
+        )
+    print(f"surrogates: {plan['surrogate']}; optimiser: {plan['optimiser']}")
+    known = _duration(plan["known_s"])
+    line = f"total: {plan['runs']} runs, {known} of simulation where the cost is known"
+    if plan["unknown_runs"]:
+        line += f", plus {plan['unknown_runs']} runs of unknown cost (run one of each to measure)"
+    print(line)
+    if plan["known_s"] > 0:
+        print(
+            f"       about {_duration(plan['known_s'] / plan['workers'])} of wall time on "
+            f"{plan['workers']} workers (known part)"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
-    from flexparcel.calibration.study import Study
+    from flexparcel.calibration.study import Study, load_study, scale_budget
 
     stages = _stages(args.stage)
+    config = load_study(args.study)
+    if args.budget is not None or args.runs:
+        config = scale_budget(config, args.budget, _runs(args.runs))
     study = Study(
-        args.study,
+        config,
         store=args.store,
         output=args.out,
         workers=args.workers,
@@ -78,6 +150,10 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.no_progress and sys.stderr.isatty(),
     )
     try:
+        study.check()
+        if args.dry_run:
+            print_plan(study.plan())
+            return 0
         if args.reset:
             study.reset(args.reset)
         for stage in _STAGES:
@@ -123,13 +199,21 @@ def _summarise(study, stage: str, result) -> None:
     elif stage == "design":
         for exp, res in result.items():
             print(f"   {exp}: {res['runs']} runs over {', '.join(res['active'])}: {res['status']}")
+            if "high_runs" in res:
+                print(f"   {exp}: {res['high_runs']} high-fidelity runs: {res['high_status']}")
     elif stage == "fit":
         for exp, res in result.items():
             for r, g in res["responses"].items():
-                print(
+                line = (
                     f"   {exp}.{r}: kernel {g['kernel']}, CV RMSE {g['cv_rmse'][g['kernel']]:.4g}, "
                     f"hold-out RMSE {g['holdout_rmse']:.4g}"
                 )
+                if "high_only_holdout_rmse" in g:
+                    line += (
+                        f" (co-kriging, rho {g['rho']:.3g}; high-only GP on the same high runs: "
+                        f"{g['high_only_holdout_rmse']:.4g})"
+                    )
+                print(line)
     elif stage == "optimise":
         for n in result["calibrated"]:
             print(f"   {n} = {result['optimum'][n]:.6g}")
