@@ -8,7 +8,7 @@ import pytest
 
 import flexparcel as fp
 from conftest import SHEET_T, soft_contact_law
-from flexparcel.contact.law import ContactLaw
+from flexparcel.contact.law import REFERENCE_AREA, REFERENCE_SPACING, ContactLaw
 from flexparcel.elements.rotations import rotation_exp
 from flexparcel.model.rigid import RoundedBox
 from flexparcel.scenarios.conveyor import ConveyorScene, DeflectorGeometry, add_conveyor
@@ -36,8 +36,10 @@ SINK = 0.5 * G / 4e5
 def _law(mu):
     """Linear spring 1e5 N/m per corner, constant damping 20 N s/m, mu_s = mu_d = mu: the law
     of the box-on-plane tests in test_contact_dynamics.py (constant damping because resting
-    penetrations are microns)."""
-    return ContactLaw(
+    penetrations are microns). Per unit area: a box corner carries REFERENCE_AREA (the
+    default of add_contact for a rigid body), so these are the values per corner."""
+    return ContactLaw.from_point_values(
+        REFERENCE_AREA,
         stiffness=1e5,
         damping=20.0,
         damping_option="indentation",
@@ -293,10 +295,13 @@ def test_packaging_beside_the_belt_meets_the_deflector_overhang(overhang):
 @pytest.mark.parametrize("sheet_thickness", [2e-3, 1e-6])
 def test_pressed_packaging_stays_in_front_of_a_deflector_sheet(sheet_thickness):
     # A 20 x 20 mm sheet (2 x 2 quads, 9 nodes) lies flat against the first deflector's face
-    # and each node is pressed into it by F = 200 N (ramped over 2 ms, no gravity), with the
-    # deflector law of the paper's scene (Table 6: c = 611 N/mm, linear). At rest each node
-    # carries F on its own contact: penetration s = F / c = 0.327 mm, so it sits at
-    # h - s = 0.15 - 0.327 mm from the face. A face contact pushes a node back to the side of
+    # and is pressed into it by a uniform pressure p = 2e6 Pa (ramped over 2 ms, no gravity):
+    # each node gets p times its tributary area, F = 200 N on the centre node (10 mm quads:
+    # 1e-4 m^2), 100 N on an edge node, 50 N on a corner. The deflector law of the paper's
+    # scene (Table 6: c = 611 N/mm per 10 mm node, per area c / (10 mm)^2, linear) gives each
+    # node the penetration s = p / c_area = 0.327 mm (the law is per area, so a uniform
+    # pressure presses every node equally deep), and it sits at h - s = 0.15 - 0.327 mm from
+    # the face. A face contact pushes a node back to the side of
     # the mesh it started the step on; the mesh is the sheet's mid-plane, so the node holds
     # while s < h + t/2. For the 2 mm default sheet that is 1.15 mm (703 N); for a sheet of
     # 1 um, 0.15 mm (92 N), less than F: the nodes cross the mid-plane and go through (in
@@ -319,14 +324,18 @@ def test_pressed_packaging_stays_in_front_of_a_deflector_sheet(sheet_thickness):
     b.add_face_contact(
         sheet, parts.deflector_vertices[0], law, thickness=parts.deflector_contact_thickness(h)
     )
-    force = 200.0
-    b.add_force(sheet, -force * g.normal, schedule=fp.Schedule((0.0, 2e-3), (0.0, 1.0)))
+    pressure = 2e6
+    area = b.node_areas(sheet)
+    for a in np.unique(area):
+        b.add_force(sheet[area == a], -pressure * a * g.normal,
+                    schedule=fp.Schedule((0.0, 2e-3), (0.0, 1.0)))  # fmt: skip
+    assert area.max() == pytest.approx(1e-4)
     # the contact's damping (0.591 N s/mm) makes the approach a creep with time constant
     # d / c = 0.97 ms: 8 of them after the ramp leave e^-8 of the lag
     r = fp.simulate(b.finalize(), 10e-3, dt_out=1e-3)
     gap = (r.positions[-1, sheet] - g.point) @ g.normal  # from the upstream face [m]
     if sheet_thickness == 2e-3:
-        s = force / law.stiffness
+        s = pressure / law.stiffness
         assert gap == pytest.approx(np.full(9, h - s), rel=0.005)
     else:
         assert gap.max() < -h  # through the face: nothing stops them behind it
@@ -352,11 +361,13 @@ def test_packaging_face_pressed_on_a_deflector_tip_is_held_by_the_tip_edge(tip_c
     # sheet (its nodes 20 mm either side of the sheet's mid-plane, 30-70 mm above the belt),
     # 0.5 mm beyond the contact thickness h = 0.15 + 1 = 1.15 mm, and each node is pressed
     # towards the deflector's root by F = 5 N (ramped over 2 ms, no gravity; the deflector
-    # law of the paper's scene, linear c = 611 N/mm). No node comes near the sheet: only the
-    # tip edge can hold the face. The 100 mm edge is cut into 4 segments of 25 mm, each with
-    # 5 stations 5 mm apart carrying c / 5; 8 of them meet the face (32.5 ... 67.5 mm), so
-    # at rest the face carries 4 F on 8 c / 5: penetration s = 4 F / (1.6 c) = 0.020 mm, and
-    # the face rests h - s from the tip's mid-plane line. Without the tip contact
+    # law of the paper's scene, linear c = 611 N/mm at a 10 mm node). No node comes near the
+    # sheet: only the tip edge can hold the face. The 100 mm edge is cut into 4 segments of
+    # 25 mm, each with 5 stations 5 mm apart; line contact is per length, each station
+    # carrying 5 mm x the 10 mm strip width = 5e-5 m^2 of the per-area law, i.e. c / 2;
+    # 8 of them meet the face (32.5 ... 67.5 mm), so at rest the face carries 4 F on 4 c:
+    # penetration s = 4 F / (4 c) = 0.008 mm (the per-point law had c / 5 per station:
+    # 0.020 mm), and the face rests h - s from the tip's mid-plane line. Without the tip contact
     # (node-to-face only) it goes through.
     from flexparcel.scenarios.conveyor import (
         TIP_SEGMENT_LENGTH,
@@ -386,7 +397,8 @@ def test_packaging_face_pressed_on_a_deflector_tip_is_held_by_the_tip_edge(tip_c
         assert len(parts.deflector_tips[0]) == round(g.height / TIP_SEGMENT_LENGTH) + 1 == 5
         samples = round(TIP_SEGMENT_LENGTH / TIP_STATION_SPACING)
         stations = 8
-        s = 4 * force / (stations * law.stiffness / samples)
+        station_area = REFERENCE_SPACING * TIP_SEGMENT_LENGTH / samples
+        s = 4 * force / (stations * law.stiffness * station_area)
         # the damping's creep (d / c = 0.97 ms) has decayed to e^-8 after the ramp; the
         # stations share their force over the two triangles of the split unequally, which the
         # plate balances by a small tilt: its nodes within 20 um, a turn below 0.5 mrad
@@ -405,11 +417,14 @@ def test_packaging_edge_across_a_deflector_edge_is_held_edge_to_edge(edge, edge_
     # square to the sheet (its nodes 20 mm either side of the sheet's mid-plane) 0.5 mm
     # beyond the contact thickness h from the edge's mid-plane line, and each node is pushed
     # towards the sheet by F = 5 N (ramped over 2 ms, no gravity; the paper scene's
-    # deflector law, linear c = 611 N/mm). No node comes near the sheet and the plate's face
-    # is 2.5 mm from the edge's nearest stations: only the edge crossing the sheet's edge can
-    # hold it. One pair (the plate's near edge, the sheet edge's segment from 50 to 75 mm)
-    # carries the law once: at rest it carries 4 F, so g = 4 F / c = 0.033 mm and the edge
-    # rests h - g from the line. Without edge-to-edge contact it goes through.
+    # deflector law, linear c = 611 N/mm at a 10 mm node). No node comes near the sheet and
+    # the plate's face is 2.5 mm from the edge's nearest stations: only the edge crossing the
+    # sheet's edge can hold it. One pair (the plate's near edge, the sheet edge's segment
+    # from 50 to 75 mm) carries the per-area law times the strip width (10 mm) times the
+    # plate edge's 40 mm, i.e. 4 c (per length: the plate's edges cross the line one element,
+    # 40 mm, apart): at rest it carries 4 F, so g = 4 F / (4 c) = 0.008 mm (the per-point law
+    # had c: 0.033 mm) and the edge rests h - g from the line. Without edge-to-edge contact it
+    # goes through.
     from flexparcel.scenarios.conveyor import add_deflector_contact
 
     b, parts, g, law, h, mid = _tip_scene()
@@ -434,7 +449,7 @@ def test_packaging_edge_across_a_deflector_edge_is_held_edge_to_edge(edge, edge_
     near = plate[:2]
     gap = (r.positions[-1, near] - mid) @ out  # the near edge's distance from the line
     if edge_contact:
-        s = 4 * force / law.stiffness
+        s = 4 * force / (law.stiffness * REFERENCE_SPACING * 0.04)
         assert gap.mean() == pytest.approx(h - s, rel=0.01)
         assert np.ptp(gap) < 5e-6  # square to the edge: no turn
     else:
@@ -577,7 +592,7 @@ def test_friction_table_defaults_and_lookups():
             assert "not measured" in DEFAULT_FRICTION_TABLE[(m, c)].source
     law = with_friction(_law(0.1), "pe_film", DEFLECTOR)
     assert (law.mu_static, law.mu_dynamic) == friction_pair("pe_film", DEFLECTOR)
-    assert law.stiffness == 1e5
+    assert law.stiffness == _law(0.1).stiffness  # friction only: 1e5 N/m per 1e-4 m^2 corner
     with pytest.raises(FrictionTableError, match=r"unknown surface material 'paper'.*kraft_paper"):
         friction_pair("paper", BELT)
     with pytest.raises(FrictionTableError, match=r"'polybag' is a packaging material"):
