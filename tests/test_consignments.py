@@ -288,8 +288,13 @@ def small_drop(small):
 def test_horizontal_drop_rebounds_well_below_the_drop_height(small_drop):
     run = small_drop
     rebound = run.responses["rebound_mm"]
-    # a limp, heavily contact-damped consignment: rebound far below the 20 mm drop
-    assert 0.0 <= rebound < 5.0
+    # a limp, heavily contact-damped consignment: rebound far below the 20 mm drop. The
+    # contact law is per area: the example's 20 mm nodes carry 4 times the paper's per-point
+    # 611 N/mm (a 10 mm node's), so they indent about half as deep, where the STEP damping
+    # (full only at s_max = 0.1 mm, growing as (s / s_max)^2) damps less: measured 6.6 mm
+    # (6.4 and 6.3 mm with tol_displacement 1e-5 and rho_inf 0.8 as well, so not the
+    # integrator's); per point it stayed below 5 mm. 40 % of the drop at most.
+    assert 0.0 <= rebound < 8.0
     # it hit the plate and stays above it: no node sinks deeper than the contact's static
     # indentation bound (0.1 mm = s_max, the STEP damping depth) below its contact radius
     low = run.result.positions[:, run.consignment.packaging, 2].min(axis=1)
