@@ -40,9 +40,11 @@ unit = "s"
 
 [parameters.contact_stiffness]
 bounds = [100, 1000]
+unit = "N/mm"
 
 [parameters.contact_damping]
 bounds = [0.1, 1.0]
+unit = "Ns/mm"
 
 [experiments.swing]
 simulator = "analytic"
