@@ -7,7 +7,7 @@ its TOML file, lengths in mm and masses in g) is importable without it.
 
 from __future__ import annotations
 
-import importlib
+from flexparcel._lazy import lazy_exports
 
 # Public name -> module that defines it.
 _LAZY: dict[str, str] = {
@@ -24,14 +24,4 @@ _LAZY: dict[str, str] = {
 __all__ = list(_LAZY)
 
 
-def __getattr__(name: str):
-    """Import the public name ``name`` from its module on first use and keep it here."""
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_LAZY[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())

@@ -39,7 +39,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flexparcel.contact.common import StickAnchors, pair_blocks
+from flexparcel.contact.common import AnchoredHistory, StickAnchors, pair_blocks
 from flexparcel.contact.geometry import point_box_contact_derivs
 from flexparcel.contact.law import P_K_T, P_MAX_PEN, contact_friction, normal_force_packed
 from flexparcel.elements.rotations import skew
@@ -298,7 +298,7 @@ def edge_box_forces(
     return n_contact, deepest, worst
 
 
-class NodeBoxSet(ContactSet):
+class NodeBoxSet(AnchoredHistory, ContactSet):
     """Shell nodes (contact radius [m]) against the rounded box of one rigid body, e.g. a
     packaging on its content; ``areas`` (Q,): each node's tributary area [m^2] (reference
     geometry) by which the per-area law is multiplied. History: the stick model's anchors
@@ -330,15 +330,6 @@ class NodeBoxSet(ContactSet):
         )  # fmt: skip
         out.coupled_blocks.append((bk, bc, dofs))
         out.merge(n_contact, depth, ratio)
-
-    def commit(self) -> None:
-        self.anchors.commit()
-
-    def history(self) -> dict[str, np.ndarray]:
-        return self.anchors.history()
-
-    def restore_history(self, history) -> None:
-        self.anchors.restore(history)
 
     def history_rows(self, numbering) -> np.ndarray:
         cols = np.column_stack([numbering[self.node], np.full(self.node.size, numbering[self.box])])

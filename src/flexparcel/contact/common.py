@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["StickAnchors", "pair_blocks", "check_history"]
+__all__ = ["StickAnchors", "AnchoredHistory", "pair_blocks", "check_history"]
 
 
 class StickAnchors:
@@ -35,6 +35,21 @@ class StickAnchors:
     def restore(self, history: dict[str, np.ndarray]) -> None:
         self.anchor = check_history(history, "anchor", self.anchor)
         self.has = check_history(history, "has", self.has)
+
+
+class AnchoredHistory:
+    """Mixin of a contact set whose history is its ``anchors`` (:class:`StickAnchors`)."""
+
+    anchors: StickAnchors
+
+    def commit(self) -> None:
+        self.anchors.commit()
+
+    def history(self) -> dict[str, np.ndarray]:
+        return self.anchors.history()
+
+    def restore_history(self, history) -> None:
+        self.anchors.restore(history)
 
 
 def check_history(history: dict[str, np.ndarray], key: str, like: np.ndarray) -> np.ndarray:

@@ -39,7 +39,7 @@ import numba as nb
 import numpy as np
 
 from flexparcel.contact.broadphase import point_triangle_candidates
-from flexparcel.contact.common import StickAnchors, pair_blocks
+from flexparcel.contact.common import AnchoredHistory, StickAnchors, pair_blocks
 from flexparcel.contact.geometry import (
     point_triangle,
     point_triangle_contact_derivs,
@@ -389,7 +389,7 @@ def _set_digest(kind: str, *arrays) -> str:
     return h.hexdigest()[:32]
 
 
-class NodeFaceSet(ContactSet):
+class NodeFaceSet(AnchoredHistory, ContactSet):
     """Node-to-face contact: nodes against triangles (shell faces or solid boundary faces),
     both sides of a face free, contact distance ``thickness`` [m]; ``areas`` (N,): each slave
     node's tributary area [m^2] (reference geometry) by which the per-area law is multiplied.
@@ -427,15 +427,6 @@ class NodeFaceSet(ContactSet):
         )  # fmt: skip
         out.coupled_blocks.append((fk, fc, dofs))
         out.merge(n_contact, depth, ratio)
-
-    def commit(self) -> None:
-        self.anchors.commit()
-
-    def history(self) -> dict[str, np.ndarray]:
-        return self.anchors.history()
-
-    def restore_history(self, history) -> None:
-        self.anchors.restore(history)
 
     def history_rows(self, numbering) -> np.ndarray:
         # a node's anchor belongs to this very set: the same nodes against the same faces

@@ -8,7 +8,7 @@ names below load lazily, so that importing the registry or the protocol loads no
 
 from __future__ import annotations
 
-import importlib
+from flexparcel._lazy import lazy_exports
 
 __all__ = [
     "Parameter",
@@ -35,13 +35,4 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str):
-    if name not in _LAZY:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(_LAZY[name]), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
