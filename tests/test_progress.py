@@ -138,7 +138,7 @@ def test_first_run_says_it_compiles(tmp_path, monkeypatch, capsys):
 
     monkeypatch.setattr(progress, "cold_kernels", lambda package=None: (90, 95))
     assert progress.announce_compilation()
-    assert "compiling kernels (first run, about" in capsys.readouterr().err
+    assert "compiling kernels (first run, about" in capsys.readouterr().out
     monkeypatch.setattr(progress, "cold_kernels", lambda package=None: (0, 95))
     assert not progress.announce_compilation()
 

@@ -348,7 +348,8 @@ def compile_minutes(cold: int) -> int:
 
 
 def announce_compilation(file=None) -> bool:
-    """Print "compiling kernels (first run, about N min) ..." on ``file`` (stderr) when the
+    """Print "compiling kernels (first run, about N min) ..." on ``file`` (stdout, with the
+    other progress messages: stderr carries a failed command's one error line) when the
     kernel cache is cold; returns whether it did."""
     try:
         cold, total = cold_kernels()
@@ -356,7 +357,7 @@ def announce_compilation(file=None) -> bool:
         return False
     if total == 0 or cold < max(1, total // 4):
         return False
-    stream = file or sys.stderr
+    stream = file or sys.stdout
     stream.write(
         f"compiling kernels (first run, about {compile_minutes(cold)} min; {cold} of {total} "
         "numba kernels are not in the disk cache yet, later runs start at once) ...\n"
