@@ -285,6 +285,7 @@ def small_drop(small):
     return drop_test(small, "horizontal", drop_height=0.02, t_end=0.1)
 
 
+@pytest.mark.slow  # 30-50 s each (make slow)
 def test_horizontal_drop_rebounds_well_below_the_drop_height(small_drop):
     run = small_drop
     rebound = run.responses["rebound_mm"]
@@ -302,6 +303,7 @@ def test_horizontal_drop_rebounds_well_below_the_drop_height(small_drop):
     assert low.min() < run.consignment.contact_radius  # and it did reach the plate
 
 
+@pytest.mark.slow  # 30-50 s each (make slow)
 def test_drop_plate_meets_the_content_box_once_through_its_packaging(small_drop):
     """The drop test's plate holds the rigid content back by its box's 8 corners with the
     packaging's plate law (``add_ground_contact``): without, KP/BW's box went 1.88 mm below
@@ -397,6 +399,7 @@ def test_content_scale_out_of_range_is_refused():
     assert AssemblySettings(settle_rho_inf=0.0).settle_rho_inf == 0.0  # 0 is allowed
 
 
+@pytest.mark.slow  # 30-50 s each (make slow)
 def test_assembly_grows_a_shrunk_content_back_without_penetration():
     # the small example opened round a content of 0.6 x its size, which then grows back to
     # full size inside the closed packaging: the same bounds as the plain assembly above

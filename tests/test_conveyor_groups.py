@@ -191,6 +191,7 @@ def closing(snap):
     return runs
 
 
+@pytest.mark.slow  # 80-90 s each with worker processes (make slow)
 def test_a_trailing_copy_is_merged_before_it_can_touch(closing):
     # the groups are merged at the frame where the gap falls below reach + 2 dt_out
     # (relative speed) + slack, before any contact is possible (no rewind), and the merged
@@ -210,6 +211,7 @@ def test_a_trailing_copy_is_merged_before_it_can_touch(closing):
     assert np.all(np.isfinite(run.result.positions))
 
 
+@pytest.mark.slow  # 80-90 s each with worker processes (make slow)
 def test_a_missed_merge_rewinds_the_frame_and_does_it_again_together(closing):
     # without lookahead and slack the groups meet within reach at a frame: that frame is
     # integrated again from the frame before, merged, and the run goes on as one group
@@ -283,6 +285,7 @@ def test_groups_start_from_the_scenes_given_state(snap):
     assert abs(other[-1] - other[0]) < 1e-5
 
 
+@pytest.mark.slow  # 80-90 s each with worker processes (make slow)
 def test_a_merged_group_splits_again_once_its_parts_are_apart(snap):
     # c0 leaves at belt speed, c1 starts at rest 50 mm behind it. With a merge slack of 60 mm
     # they start as one group; they part at about 1.6 m/s, and once the packagings are
