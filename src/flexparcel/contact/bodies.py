@@ -315,13 +315,17 @@ class NodeBoxSet(AnchoredHistory, ContactSet):
         self.radius = float(radius)
         self.area = np.ascontiguousarray(np.broadcast_to(areas, self.node.shape), dtype=float)
         """Tributary area of each node [m^2], shape (Q,)."""
+        # the kernel's per-pair box, radius and law rows; constant, so built once
+        self._box_of = np.full(self.node.size, self.box, dtype=np.int64)
+        self._radius_of = np.full(self.node.size, self.radius)
+        self._law_of = np.zeros(self.node.size, np.int64)
         self.anchors = StickAnchors(self.node.size)
 
     def evaluate(self, ctx, state, out) -> None:
         q = self.node.size
         bk, bc, dofs = pair_blocks(q, 9)
         n_contact, depth, _, ratio = box_contact_forces(
-            self.node, np.full(q, self.box), np.full(q, self.radius), np.zeros(q, np.int64),
+            self.node, self._box_of, self._radius_of, self._law_of,
             np.full(q, ctx.factors[self.schedule_index]), self.area, ctx.box_half,
             ctx.model.box_radius_by_node, ctx.laws[self.law_index : self.law_index + 1],
             state.positions, state.rotations, state.velocities, out.forces, bk, bc, dofs,

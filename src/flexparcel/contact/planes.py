@@ -201,6 +201,9 @@ class PlanePointSet(ContactSet):
         self.plane = int(plane)
         self.area = np.ascontiguousarray(np.broadcast_to(areas, self.node.shape), dtype=float)
         """Tributary area of each point [m^2], shape (P,)."""
+        # the kernel's per-point plane and law rows; constant, so built once, not per call
+        self._plane_of = np.full(self.node.size, self.plane, dtype=np.int64)
+        self._law_of = np.zeros(self.node.size, np.int64)
         self.u_el = np.zeros((self.node.size, 3))
         self.u_el_trial = self.u_el.copy()
 
@@ -210,7 +213,7 @@ class PlanePointSet(ContactSet):
         dq = np.zeros((p, 6, 6))
         dv = np.zeros((p, 6, 6))
         n_contact, depth, point, ratio = plane_contact_forces(
-            self.node, self.offset, self.radius, np.full(p, self.plane), np.zeros(p, np.int64),
+            self.node, self.offset, self.radius, self._plane_of, self._law_of,
             np.full(p, ctx.factors[self.schedule_index]), self.area, m.plane_point, m.plane_normal,
             m.plane_velocity, ctx.laws[self.law_index : self.law_index + 1], state.positions,
             state.rotations, state.velocities, out.forces, dq, dv, ctx.node_mass,
