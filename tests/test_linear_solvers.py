@@ -72,14 +72,15 @@ def test_backend_names():
     assert isinstance(make_linear_solver("superlu-blocks"), BlockSuperLU)
     with pytest.raises(
         ValueError,
-        match="one of 'superlu', 'superlu-blocks', 'superlu-blocks-mixed', 'pardiso', got 'lu'",
+        match="one of 'auto', 'superlu', 'cholmod', 'superlu-blocks', 'superlu-blocks-mixed', "
+        "'pardiso', got 'lu'",
     ):
         make_linear_solver("lu")
     with pytest.raises(ValueError, match="workers must be >= 1"):
         BlockSuperLU(0)
 
 
-@pytest.mark.parametrize("backend", ["superlu-blocks", "superlu-blocks-mixed"])
+@pytest.mark.parametrize("backend", ["superlu-blocks", "superlu-blocks-mixed", "cholmod"])
 def test_block_backend_gives_the_same_motion(backend):
     # two separate sheets and a box: three independent blocks until the sheets touch; the
     # block factorisation solves the same Newton systems (orderings differ: round-off; the
@@ -88,11 +89,15 @@ def test_block_backend_gives_the_same_motion(backend):
     from test_checkpoint import _scene
 
     model, s0 = _scene()
-    r0 = fp.simulate(model, 0.03, dt_out=0.01, state=s0)
+    r0 = fp.simulate(model, 0.03, dt_out=0.01, state=s0,
+                     options=fp.IntegratorOptions(linear_solver="superlu"))  # fmt: skip
     opt = fp.IntegratorOptions(linear_solver=backend)
     r1 = fp.simulate(model, 0.03, dt_out=0.01, state=s0, options=opt)
     assert r1.stats["steps"] == r0.stats["steps"]
-    assert np.abs(r1.positions - r0.positions).max() < 1e-9
+    # cholmod solves the friction-coupled (nonsymmetric) matrices by GMRES to a relative
+    # residual of KRYLOV_RTOL (1e-8) instead of to round-off: measured 2.7e-9 m
+    tol = 1e-8 if backend == "cholmod" else 1e-9
+    assert np.abs(r1.positions - r0.positions).max() < tol
 
 
 def _backward_error(a, x, b):
@@ -150,3 +155,88 @@ def test_mixed_precision_factorises_in_double_where_single_loses_a_pivot():
     np.testing.assert_array_equal(s.solve(b), ref.solve(b))
     assert s.refinement_steps == 0
     s.close()
+
+
+# ---------------------------------------------------------------- CHOLMOD (the ``fast`` extra)
+
+cholmod = pytest.importorskip("cvxopt.cholmod", reason="the cholmod backend needs cvxopt")
+
+
+def _shell_like(n=60, seed=0, skew=0.0, couple=()):
+    """A symmetric positive definite matrix with the sparsity of a banded FE mesh (a mass
+    term on the diagonal, like the Newton matrix c_a M + K), plus an optional one-way
+    coupling ``skew`` (friction: the tangential force follows the normal one) and extra
+    symmetric couplings ``couple`` (i, j) (a contact pair switching on)."""
+    rng = np.random.default_rng(seed)
+    g = sp.diags([rng.uniform(0.5, 1.0, n - k) for k in (1, 2, 5)], [1, 2, 5], (n, n))
+    for i, j in couple:
+        g = g + sp.coo_matrix(([0.3], ([min(i, j)], [max(i, j)])), shape=(n, n))
+    k = g + g.T
+    a = (k + sp.diags(abs(k).sum(axis=1).A1 + 1.0)).tocsr()
+    if skew:
+        w = sp.coo_matrix((skew * rng.uniform(size=n - 1), (np.arange(1, n), np.arange(n - 1))),
+                          shape=(n, n))  # fmt: skip
+        a = (a + w - w.multiply(0) + sp.coo_matrix(w.shape)).tocsr()
+        a = (a + 0.0 * a.T).tocsr()  # keep the pattern structurally symmetric
+    a.sort_indices()
+    return a
+
+
+def test_backend_auto_takes_cholmod_where_cvxopt_is_installed():
+    assert make_linear_solver().name == "cholmod"
+    assert make_linear_solver("auto").name == "cholmod"
+    assert isinstance(make_linear_solver("cholmod"), linear.CholmodSolver)
+
+
+@pytest.mark.parametrize("skew", [0.0, 0.05])
+def test_cholmod_solves_like_superlu(skew):
+    # symmetric: one Cholesky solve; nonsymmetric: GMRES preconditioned by the Cholesky
+    # factor of the symmetric part, to KRYLOV_RTOL (1e-8) of the residual
+    a = _shell_like(skew=skew)
+    assert (abs(a - a.T).max() > 0) == (skew > 0)
+    b = np.random.default_rng(3).standard_normal(a.shape[0])
+    ref = LinearSolver()
+    ref.factor(a)
+    s = make_linear_solver("cholmod")
+    s.factor(a)
+    x = s.solve(b)
+    tol = 1e-13 if skew == 0 else linear.KRYLOV_RTOL
+    assert np.linalg.norm(a @ x - b) <= tol * np.linalg.norm(b)
+    # the condition number of these matrices is ~10: the solutions agree to that factor
+    np.testing.assert_allclose(x, ref.solve(b), rtol=0, atol=20 * tol * np.abs(x).max())
+    assert (s.krylov_iterations > 0) == (skew > 0)
+    assert s.fallbacks == 0 and s.symbolic_count == 1
+
+
+def test_cholmod_reuses_the_symbolic_analysis_while_patterns_stay_within_the_union():
+    s = make_linear_solver("cholmod")
+    b = np.ones(60)
+    # a contact coupling 3-40 switches on, off and on again: the held pattern grows once
+    # to the union, and the later matrices (subsets of it) reuse its analysis
+    for couple in [(), [(3, 40)], (), [(3, 40)], ()]:
+        a = _shell_like(couple=couple)
+        s.factor(a)
+        assert np.linalg.norm(a @ s.solve(b) - b) <= 1e-13 * np.linalg.norm(b)
+    assert s.symbolic_count == 2
+    # a pattern far larger than the held one is analysed from scratch (no union)
+    big = _shell_like(couple=[(i, (i + 30) % 60) for i in range(0, 60, 2)])
+    s.factor(big)
+    assert np.linalg.norm(big @ s.solve(b) - b) <= 1e-13 * np.linalg.norm(b)
+    assert s.symbolic_count == 3
+
+
+def test_cholmod_falls_back_to_superlu_where_the_matrix_is_not_positive_definite():
+    a = _shell_like().tolil()
+    a[7, 7] = -50.0  # indefinite, still regular
+    a = a.tocsr()
+    b = np.random.default_rng(4).standard_normal(a.shape[0])
+    s = make_linear_solver("cholmod")
+    s.factor(a)
+    x = s.solve(b)
+    assert s.fallbacks == 1
+    assert np.linalg.norm(a @ x - b) <= 1e-12 * np.linalg.norm(b)
+    # the next positive definite matrix is factorised by CHOLMOD again
+    a2 = _shell_like(seed=5)
+    s.factor(a2)
+    assert np.linalg.norm(a2 @ s.solve(b) - b) <= 1e-13 * np.linalg.norm(b)
+    assert s.fallbacks == 1

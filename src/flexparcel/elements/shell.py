@@ -403,6 +403,34 @@ def element_forces(tris, kl, xloc, r0ref, beta, pos, rot, vel, out):
     return float(en.sum())
 
 
+@nb.njit(cache=True)
+def _btkb_into(bg, kl, out):
+    """out = B^T K_l B (18, 18) for symmetric K_l: only the upper triangle is summed and then
+    mirrored (exactly symmetric, which the Cholesky backend relies on), and the zeros of K_l
+    (membrane and bending do not couple in a flat facet: half of it) and of B (about 40 %: a
+    translation row has no rotation columns, a rotation row only its own node's) are
+    skipped."""
+    t = np.zeros((18, 18))
+    for i in range(18):
+        for p in range(18):
+            kip = kl[i, p]
+            if kip != 0.0:
+                for j in range(18):
+                    t[i, j] += kip * bg[p, j]
+    for i in range(18):
+        for j in range(i, 18):
+            out[i, j] = 0.0
+    for p in range(18):
+        for i in range(18):
+            bpi = bg[p, i]
+            if bpi != 0.0:
+                for j in range(i, 18):
+                    out[i, j] += bpi * t[p, j]
+    for i in range(18):
+        for j in range(i + 1, 18):
+            out[j, i] = out[i, j]
+
+
 @nb.njit(cache=True, parallel=True)
 def _material_tangent_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en, ke):
     for e in nb.prange(tris.shape[0]):
@@ -411,17 +439,20 @@ def _material_tangent_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en,
         f, energy = _force_from_kinematics(d, bg, v, kl[e], beta[e])
         fe[e] = f
         en[e] = energy
-        # B^T (K_l B); matmul skips the zeros of its first operand, and about 40 % of B are
-        # zero (a translation row has no rotation columns, a rotation row only its own node's)
-        ke[e] = matmul(bg.T.copy(), matmul(kl[e].copy(), bg))
+        _btkb_into(bg, kl[e], ke[e])
 
 
 @nb.njit(cache=True)
-def _scatter_matrix(emap, ke, scale, data):
+def _scatter_matrices(emap, ke, beta, data_k, data_c):
+    """K_e into ``data_k`` and beta_e K_e into ``data_c``, in one pass over the slots."""
     for e in range(ke.shape[0]):
+        b = beta[e]
         for i in range(18):
             for j in range(18):
-                data[emap[e, i, j]] += scale[e] * ke[e, i, j]
+                slot = emap[e, i, j]
+                k = ke[e, i, j]
+                data_k[slot] += k
+                data_c[slot] += b * k
 
 
 def material_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, data_c, emap):
@@ -433,8 +464,7 @@ def material_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k,
     ke = np.empty((m, 18, 18))
     _material_tangent_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en, ke)
     _scatter_forces(tris, fe, out_f)
-    _scatter_matrix(emap, ke, np.ones(m), data_k)
-    _scatter_matrix(emap, ke, beta, data_c)
+    _scatter_matrices(emap, ke, beta, data_k, data_c)
     return float(en.sum())
 
 

@@ -122,8 +122,9 @@ class IntegratorOptions:
     """"material": B^T K_l B + the SO(3) increment map, cheap (no frame-rotation terms, so
     Newton converges linearly; measured 2 iterations per step on the sheet swing) or
     "consistent": exact derivative by complex step (quadratic convergence, ~10x costlier)."""
-    linear_solver: str = "superlu"
-    """Backend of :func:`flexparcel.integrate.linear.make_linear_solver`: "superlu",
+    linear_solver: str = "auto"
+    """Backend of :func:`flexparcel.integrate.linear.make_linear_solver`: "auto" (CHOLMOD where
+    the ``fast`` extra is installed, else SuperLU), "cholmod", "superlu",
     "superlu-blocks" (one factorisation per independent block, in parallel),
     "superlu-blocks-mixed" (the same in single precision, refined to a double-precision
     solution) or "pardiso"."""

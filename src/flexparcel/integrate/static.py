@@ -53,7 +53,7 @@ def solve_static(
     tol: float = 1e-8,
     max_iterations: int = 25,
     max_cuts: int = 8,
-    linear_solver: str = "superlu",
+    linear_solver: str = "auto",
     time: float = 0.0,
 ) -> StaticResult:
     """Equilibrium under all loads (gravity, nodal forces/moments at schedule time ``time``)
