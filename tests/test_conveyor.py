@@ -501,6 +501,19 @@ def test_jam_detection():
     assert _responses(0.015 * T, jam_distance=4e-3).jam_start is None
 
 
+def test_jam_verdict_tells_no_jam_from_not_judged():
+    # a None jam_start is one of three outcomes; the verdict (and the report) says which
+    state, text = _responses(np.minimum(1.6 * T, 0.32)).jam_verdict()
+    assert state == "jam" and "jammed from t = 0.200 s" in text
+    state, text = _responses(0.02 * T).jam_verdict()
+    # windows of 0.3 s judged up to 0.6 - 0.3 s: the later ones run past the record
+    assert state == "none" and "starting up to t = 0.300 s" in text
+    assert _responses(2.5 + 1.6 * T).jam_verdict()[0] == "left"
+    short = _responses(0.02 * T, jam_time=0.8).jam_verdict()
+    assert short[0] == "not judged" and short[1].startswith("not reached in this run")
+    assert _responses(0.02 * T, jam_time=0.8).to_dict()["notes"]["jam_start_s"] == short[1]
+
+
 def test_yaw_is_unwrapped_through_the_axis_ambiguity():
     # a rectangle turning by 200 deg: its long axis is only defined modulo 180 deg
     yaw = np.radians(200.0) * T / T[-1]
@@ -533,8 +546,24 @@ def test_deflector_contact_time_uses_any_node_near_the_face_rectangle():
     beyond = g.tip + 0.05 * g.tangent + [0.0, 0.0, 0.02]
     assert g.distance(beyond) > 0.04
     d = json.loads(json.dumps(r["c"].to_dict()))
-    assert d["peak_contact_force"] == 5.0 and len(d["trajectory"]["x"]) == len(T)
-    assert d == r["c"].to_dict() and d["exit_time"] is None
+    assert d["peak_contact_force_N"] == 5.0 and len(d["trajectory"]["x_m"]) == len(T)
+    assert d == r["c"].to_dict() and d["exit_time_s"] is None
+    assert d["contact_force_N"][25] == 5.0 and d["contact_force_N"][0] == 0.0
+    # never touching deflector 2 is null with a note, not a contact of 0.0 s (read as t = 0)
+    assert d["deflector_contact_duration_s"][0] == pytest.approx(0.2, abs=0.01 + 1e-12)
+    assert d["deflector_contact_duration_s"][1] is None
+    assert d["deflector_first_contact_s"][0] == pytest.approx(0.1, abs=1e-9)
+    assert d["deflector_first_contact_s"][1] is None
+    assert (
+        "no node came within 2 mm of the face of deflector 2"
+        in (d["notes"]["deflector_contact_duration_s"])
+    )
+    assert d["notes"]["exit_time_s"] == "did not reach the belt end within the run"
+    # every key with a number carries its unit
+    units = ("_s", "_m", "_deg", "_N")
+    assert all(k.endswith(units) for k in d if k not in ("name", "trajectory", "notes",
+                                                          "jam_verdict"))  # fmt: skip
+    assert all(k.endswith(units) for k in d["trajectory"])
 
 
 def test_response_bad_input():

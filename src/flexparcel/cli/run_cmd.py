@@ -375,9 +375,10 @@ def _run_conveyor(args: argparse.Namespace) -> int:
     for name, r in result.record.responses.items():
         c0, c1 = r.centroid[0], r.centroid[-1]
         exit_ = "-" if r.exit_time is None else f"{r.exit_time:.2f} s"
-        contact = ", ".join(f"{v:.3f}" for v in r.deflector_contact_time)
+        # a deflector never touched shows "-", not 0.000 (which reads as contact at t = 0)
+        contact = ", ".join(f"{v:.3f}" if v > 0.0 else "-" for v in r.deflector_contact_time)
         print(f"  {name}: x {c0[0]:.3f} -> {c1[0]:.3f} m, y {c0[1]:.3f} -> {c1[1]:.3f} m, "
-              f"exit {exit_}, deflector contact [{contact}] s")  # fmt: skip
+              f"exit {exit_}, deflector contact for [{contact}] s")  # fmt: skip
     for key, path in files.items():
         print(f"{key + ':':<18}{path}")
     return 0

@@ -16,19 +16,24 @@ Definitions (SI units; angles in degrees):
   for a node set without a clear long axis in some frame (in-plane anisotropy
   (l1 - l2) / (l1 + l2) of the scatter's eigenvalues below 2 %, e.g. a single node or a
   square), where the axis is ill-defined.
-* deflector contact time: total time during which *any* node of the set lies within
+* deflector contact duration: total time during which *any* node of the set lies within
   ``contact_distance`` of the deflector's face rectangle (not its unbounded plane), whatever the
   centroid does; the in/out indicator is integrated with the trapezoidal rule, so each contact
   episode is accurate to about one output interval. Choose ``contact_distance`` above the
   contact thickness (shell nodes rest about half a shell thickness off the face; a rigid
-  body's node sits half the box width off it).
+  body's node sits half the box width off it). The first contact is the first frame with a
+  node that close. In ``responses.json`` both are null for a deflector never touched (a
+  duration of 0.0 s read as "contact at t = 0").
 * jam: the first frame time t0 (not after exit) after which the centroid gets no further than
   ``jam_distance`` beyond x(t0) during ``jam_time``; None if there is none. Windows that run
   past the end of the record are not judged, so a jam in the last ``jam_time`` of a run goes
-  unreported.
-* peak contact force: the largest magnitude of a force time series the caller supplies per
-  consignment (e.g. summed deflector contact forces), shape (k,) or (k, 3) [N], and its time;
-  None when not supplied.
+  unreported; :meth:`ConsignmentResponse.jam_verdict` says which case a None is.
+* contact force: a force time series the caller supplies per consignment (e.g. summed
+  deflector contact forces), shape (k,) or (k, 3) [N], kept as its magnitude (k,); its peak
+  and the peak's time; None when not supplied.
+
+``responses.json`` (:meth:`ConsignmentResponse.to_dict`) names every quantity with its unit
+(``_s``, ``_m``, ``_deg``, ``_N``) and gives a note for every null.
 """
 
 from __future__ import annotations
@@ -67,35 +72,96 @@ class ConsignmentResponse:
     exit_position: np.ndarray | None
     """Centroid at ``exit_time`` [m], shape (3,), or None."""
     deflector_contact_time: tuple[float, ...]
-    """Time in contact with each deflector of the scene [s]."""
+    """Time in contact with each deflector of the scene [s] (a duration; 0.0: never)."""
     jam_start: float | None
     """Start of the first jam [s], or None."""
     peak_contact_force: float | None = None
     """Largest supplied contact force magnitude [N], or None."""
     peak_contact_force_time: float | None = None
     """Its time [s], or None."""
+    deflector_first_contact: tuple[float | None, ...] = ()
+    """First frame time [s] in contact with each deflector, None where never."""
+    contact_force: np.ndarray | None = None
+    """Magnitude of the supplied contact force at each frame [N], shape (k,), or None."""
+    jam_time: float = 0.3
+    """Length of the jam window [s]."""
+    jam_distance: float = 5e-3
+    """Progress along x below which a window counts as jammed [m]."""
+    contact_distance: float = 2e-3
+    """Node-to-face distance counted as deflector contact [m]."""
+
+    def jam_verdict(self) -> tuple[str, str]:
+        """``(state, sentence)``: state ``"jam"`` (from :attr:`jam_start`), ``"left"`` (left
+        the belt before a window showed a jam), ``"none"`` (every window that fits in the run
+        judged, no jam) or ``"not judged"`` (the run is shorter than one window)."""
+        window = f"{1e3 * self.jam_distance:g} mm in {self.jam_time:g} s"
+        t0, t1 = float(self.time[0]), float(self.time[-1])
+        if self.jam_start is not None:
+            return "jam", f"jammed from t = {self.jam_start:.3f} s (advanced less than {window})"
+        if self.exit_time is not None:
+            return "left", f"no jam: left the belt at t = {self.exit_time:.3f} s"
+        last = t1 - self.jam_time
+        if last < t0:
+            return "not judged", (f"not reached in this run: the run ({t1 - t0:.3g} s) is "
+                                  f"shorter than the {self.jam_time:g} s jam window")  # fmt: skip
+        return "none", (f"no jam: never less than {window} in the windows starting up to "
+                        f"t = {last:.3f} s (later ones run past the end)")  # fmt: skip
+
+    def notes(self) -> dict[str, str]:
+        """Why each null of :meth:`to_dict` is null (key -> sentence); empty where none is."""
+        out = {}
+        if self.exit_time is None:
+            out["exit_time_s"] = "did not reach the belt end within the run"
+            out["exit_position_m"] = out["exit_time_s"]
+        never = [str(i) for i, v in enumerate(self.deflector_contact_time, 1) if v <= 0.0]
+        if never:
+            why = (f"null: no node came within {1e3 * self.contact_distance:g} mm of the "
+                   f"face of deflector {', '.join(never)} within the run")  # fmt: skip
+            out["deflector_contact_duration_s"] = why
+            out["deflector_first_contact_s"] = why
+        if self.jam_start is None:
+            out["jam_start_s"] = self.jam_verdict()[1]
+        if self.yaw_deg is None:
+            out["yaw_deg"] = "the node set has no clear long axis in some frame"
+        if self.contact_force is None:
+            for key in ("contact_force_N", "peak_contact_force_N", "peak_contact_force_time_s"):
+                out[key] = "no contact force recorded"
+        return out
 
     def to_dict(self) -> dict:
-        """JSON-ready copy: floats, lists and None only."""
+        """JSON-ready copy: floats, lists and None only; keys carry their unit, ``notes``
+        says why a value is null."""
 
         def opt(v):
             return None if v is None else float(v)
 
+        never = [v <= 0.0 for v in self.deflector_contact_time]
+        first = self.deflector_first_contact or (None,) * len(never)
         return {
             "name": self.name,
             "trajectory": {
-                "t": self.time.tolist(),
-                "x": self.centroid[:, 0].tolist(),
-                "y": self.centroid[:, 1].tolist(),
-                "z": self.centroid[:, 2].tolist(),
+                "t_s": self.time.tolist(),
+                "x_m": self.centroid[:, 0].tolist(),
+                "y_m": self.centroid[:, 1].tolist(),
+                "z_m": self.centroid[:, 2].tolist(),
             },
             "yaw_deg": None if self.yaw_deg is None else self.yaw_deg.tolist(),
-            "exit_time": opt(self.exit_time),
-            "exit_position": None if self.exit_position is None else self.exit_position.tolist(),
-            "deflector_contact_time": [float(v) for v in self.deflector_contact_time],
-            "jam_start": opt(self.jam_start),
-            "peak_contact_force": opt(self.peak_contact_force),
-            "peak_contact_force_time": opt(self.peak_contact_force_time),
+            "contact_force_N": None if self.contact_force is None else self.contact_force.tolist(),
+            "exit_time_s": opt(self.exit_time),
+            "exit_position_m": (
+                None if self.exit_position is None else self.exit_position.tolist()
+            ),
+            # null, not 0.0, for a deflector never touched (0.0 read as contact at t = 0)
+            "deflector_contact_duration_s": [
+                None if n else float(v)
+                for v, n in zip(self.deflector_contact_time, never, strict=True)
+            ],
+            "deflector_first_contact_s": [opt(v) for v in first],
+            "jam_start_s": opt(self.jam_start),
+            "jam_verdict": self.jam_verdict()[1],
+            "peak_contact_force_N": opt(self.peak_contact_force),
+            "peak_contact_force_time_s": opt(self.peak_contact_force_time),
+            "notes": self.notes(),
         }
 
 
@@ -139,6 +205,33 @@ def _jam(
         if x[i:j].max() - x[i] <= distance:
             return float(t[i])
     return None
+
+
+def _deflector_contact(
+    t: np.ndarray, p: np.ndarray, deflectors, distance: float
+) -> tuple[tuple[float, ...], tuple[float | None, ...]]:
+    """Contact duration [s] and first contact time [s] (None: never) with each deflector of
+    nodes ``p`` (k, m, 3)."""
+    durations, first = [], []
+    for g in deflectors:
+        inside = g.distance(p).min(axis=1) <= distance
+        f = inside.astype(float)
+        durations.append(float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(t))))
+        first.append(float(t[np.argmax(inside)]) if inside.any() else None)
+    return tuple(durations), tuple(first)
+
+
+def _force_magnitude(name: str, f, k: int) -> np.ndarray | None:
+    """|force| [N] (k,) of a series of shape (k,) or (k, 3), or None for none."""
+    if f is None:
+        return None
+    f = np.asarray(f, dtype=float)
+    if f.shape not in ((k,), (k, 3)):
+        raise ValueError(
+            f"conveyor_responses: contact_forces[{name!r}] must have shape ({k},) or "
+            f"({k}, 3), got {f.shape}"
+        )
+    return np.abs(f) if f.ndim == 1 else np.linalg.norm(f, axis=1)
 
 
 def _node_set(name: str, ids, n: int) -> np.ndarray:
@@ -208,19 +301,10 @@ def conveyor_responses(
         p = pos[:, nodes]  # (k, m, 3)
         c = p.mean(axis=1)
         exit_time, exit_pos = _exit(t, c, scene.belt_length)
-        contact = []
-        for g in deflectors:
-            inside = (g.distance(p).min(axis=1) <= contact_distance).astype(float)
-            contact.append(float(np.sum(0.5 * (inside[1:] + inside[:-1]) * np.diff(t))))
+        contact, first = _deflector_contact(t, p, deflectors, contact_distance)
+        mag = _force_magnitude(name, forces.get(name), len(t))
         peak = peak_t = None
-        if name in forces:
-            f = np.asarray(forces[name], dtype=float)
-            if f.shape not in ((len(t),), (len(t), 3)):
-                raise ValueError(
-                    f"conveyor_responses: contact_forces[{name!r}] must have shape "
-                    f"({len(t)},) or ({len(t)}, 3), got {f.shape}"
-                )
-            mag = np.abs(f) if f.ndim == 1 else np.linalg.norm(f, axis=1)
+        if mag is not None:
             i = int(np.argmax(mag))
             peak, peak_t = float(mag[i]), float(t[i])
         out[name] = ConsignmentResponse(
@@ -234,5 +318,10 @@ def conveyor_responses(
             jam_start=_jam(t, c[:, 0], exit_time, jam_distance, jam_time),
             peak_contact_force=peak,
             peak_contact_force_time=peak_t,
+            deflector_first_contact=first,
+            contact_force=mag,
+            jam_time=float(jam_time),
+            jam_distance=float(jam_distance),
+            contact_distance=float(contact_distance),
         )
     return out

@@ -9,7 +9,8 @@ the scene as one model), ``checkpoint`` (a ``.npz`` the run saves itself to and 
 from) and ``preview`` (no stepping: the frames the checkpoint holds so far).
 
 Responses, per placement NAME: ``NAME.exit_time`` [s], ``NAME.final_x`` / ``NAME.final_y``
-[m], ``NAME.deflector_contact_time_I`` [s] (I = 1, 2, ...), ``NAME.jam_start`` [s],
+[m], ``NAME.deflector_contact_duration_I`` [s] (I = 1, 2, ...; not reached: never within
+2 mm of that deflector), ``NAME.jam_start`` [s],
 ``NAME.peak_contact_force`` [N], ``NAME.deflector_crossing`` [s] (not reached: the wanted
 outcome, no packaging node went behind a deflector).
 
@@ -197,6 +198,7 @@ class ConveyorScenario(ScenarioBase):
             "t_end_s": t,
             "dt_out_s": dt_out,
             "pair_reach_m": p["pair_reach"],
+            "jam_time_s": self.jam_time,
             "workers": self.workers,
             "content_stiffness_N_per_mm": p["content_stiffness"],
             "element_size_mm": {k: s.build.element_size * 1e3 for k, s in consignment.items()},
@@ -281,9 +283,11 @@ def _consignment_responses(name: str, r: Any, crossing: float | None) -> dict[st
             "" if crossing is not None else "no packaging node behind a deflector"),
     }  # fmt: skip
     for i, t in enumerate(r.deflector_contact_time, start=1):
-        out[f"{name}.deflector_contact_time_{i}"] = Response(
-            float(t), "s", f"time in contact with deflector {i}"
-        )
+        # never touched is not a contact of 0 s at some time: not reached, with the reason
+        out[f"{name}.deflector_contact_duration_{i}"] = Response(
+            float(t) if t > 0.0 else None, "s", f"time in contact with deflector {i}",
+            "" if t > 0.0 else f"no node came within {1e3 * r.contact_distance:g} mm of "
+            f"deflector {i}'s face within the run")  # fmt: skip
     return out
 
 

@@ -109,6 +109,7 @@ __all__ = [
     "deflector_edge_depths",
     "run_conveyor",
     "conveyor_options",
+    "SUMMARY_NOTES",
 ]
 
 PAPER_CONSIGNMENTS = ("KPBW", "PB", "KP", "BW")
@@ -209,30 +210,31 @@ class SceneLayout:
         object.__setattr__(self, "gap_above_belt", g)
 
     def to_dict(self) -> dict:
-        """JSON-ready copy."""
+        """JSON-ready copy; keys carry their unit (the scene file's names)."""
         c = self.conveyor
         return {
             "conveyor": {
-                "belt_length": c.belt_length,
-                "belt_width": c.belt_width,
-                "belt_speed": c.belt_speed,
+                "belt_length_m": c.belt_length,
+                "belt_width_m": c.belt_width,
+                "belt_speed_m_s": c.belt_speed,
                 "deflector_angle_deg": c.deflector_angle_deg,
-                "deflector_x": list(c.deflector_x),
-                "centre_gap": c.centre_gap,
-                "deflector_height": c.deflector_height,
+                "deflector_x_m": list(c.deflector_x),
+                "centre_gap_m": c.centre_gap,
+                "deflector_height_m": c.deflector_height,
                 "side_guides": c.side_guides,
             },
             "placements": [
                 {
                     "name": p.name,
                     "consignment": p.consignment,
-                    "x": p.x,
-                    "y": p.y,
+                    "x_m": p.x,
+                    "y_m": p.y,
                     "yaw_deg": p.yaw_deg,
+                    "speed_m_s": p.speed,
                 }
                 for p in self.placements
             ],  # fmt: skip
-            "gap_above_belt": self.gap_above_belt,
+            "gap_above_belt_m": self.gap_above_belt,
         }
 
 
@@ -801,8 +803,8 @@ def deflector_edge_depths(cm: ConveyorModel, result: SimulationResult) -> dict[s
     element chords through the sheet's edge, what the edge-to-edge contact of
     :func:`~flexparcel.scenarios.conveyor.add_deflector_contact` is there to prevent (a
     result to distrust there). Between frames deeper approaches are missed. Placement name
-    -> {"depth_m", "thickness_m", "time" [s], "edge" ("tip 1", "end 2", ... by deflector,
-    upstream first)}; ``depth_m``, ``time`` and ``edge`` are None if no packaging edge came
+    -> {"depth_m", "thickness_m", "time_s", "edge" ("tip 1", "end 2", ... by deflector,
+    upstream first)}; ``depth_m``, ``time_s`` and ``edge`` are None if no packaging edge came
     within h of a deflector edge."""
     t = np.asarray(result.time)
     frames = np.ascontiguousarray(np.asarray(result.positions, dtype=np.float64))
@@ -818,13 +820,26 @@ def deflector_edge_depths(cm: ConveyorModel, result: SimulationResult) -> dict[s
         keep = np.zeros(cm.model.node_count, dtype=bool)
         keep[c.packaging] = True
         edges = shell_edges(cm.model.cells, keep)
-        best = {"depth_m": None, "thickness_m": h, "time": None, "edge": None}
+        best = {"depth_m": None, "thickness_m": h, "time_s": None, "edge": None}
         for label, segs in lines:
             d, k = _deepest_edge_pair(frames, edges, segs, h)
             if d < h and (best["depth_m"] is None or h - d > best["depth_m"]):
-                best.update(depth_m=float(h - d), time=float(t[k]), edge=label)
+                best.update(depth_m=float(h - d), time_s=float(t[k]), edge=label)
         out[name] = best
     return out
+
+
+SUMMARY_NOTES = {
+    "deflector_crossings": "per consignment, the first time [s] a packaging node lies behind "
+    "a deflector (contact failed); null: never, the wanted outcome",
+    "deflector_edge_depths": "per consignment, how far [m] packaging element edges came "
+    "inside the contact thickness of a deflector's tip or end edge; null: never within it",
+    "friction": "[mu_static, mu_dynamic] of each contact pair [-]",
+    "consignments": "per consignment: keys carry their unit (_s, _m, _deg, _N); its notes "
+    "say why a value is null",
+}
+"""The ``notes`` of a conveyor run's ``responses.json``: units and the meaning of null of
+the keys without a unit suffix."""
 
 
 @dataclass
@@ -858,6 +873,7 @@ class ConveyorRun:
             "node_count": int(cm.model.node_count),
             "dof_count": int(cm.model.dof_count),
             "consignment_contact_pairs": [list(p) for p in cm.consignment_pairs],
+            # name kept for the benchmark's JSON; the unit and the meaning of null in notes
             "deflector_crossings": deflector_crossings(cm, res),
             "deflector_edge_depths": deflector_edge_depths(cm, res),
             "layout": cm.layout.to_dict(),
@@ -865,6 +881,7 @@ class ConveyorRun:
                 k: {part: [law.mu_static, law.mu_dynamic] for part, law in v.items()}
                 for k, v in cm.laws.items()
             },
+            "notes": dict(SUMMARY_NOTES),
         }
 
 
