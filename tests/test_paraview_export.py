@@ -124,6 +124,29 @@ def test_drop_writes_packaging_content_and_plate_series(drop_dir):
     assert np.allclose(plate.points[:, 2], 0.0)
 
 
+def test_vtu_and_pvd_files_are_written_atomically(drop_dir, tmp_path, monkeypatch):
+    # no temporary file is left next to a run's series; a writer that fails keeps the old
+    # file whole (ParaView reading a run in progress never meets half a file)
+    from flexparcel.io.paraview import write_paraview_static
+
+    out, _, _ = drop_dir
+    assert not [p.name for p in (out / "paraview").iterdir() if p.name.startswith(".")]
+    pts = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    quad = [("quad", np.array([[0, 1, 2, 3]]))]
+    write_paraview_static(tmp_path, "belt", pts, quad)
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert set(before) == {"belt.pvd", "belt_0000.vtu"}
+
+    def broken(path, *args, **kwargs):
+        Path(path).write_bytes(b"<VTKFile half")  # a write cut short
+        raise OSError("disk full")
+
+    monkeypatch.setattr(meshio, "write", broken)
+    with pytest.raises(OSError, match="disk full"):
+        write_paraview_static(tmp_path, "belt", 2 * pts, quad)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
 def test_packaging_fields_carry_units_ids_strain_and_stress(drop_dir):
     from flexparcel.io.results import load_result
 
@@ -271,6 +294,11 @@ def test_viewer_opens_conveyor_results_written_without_parts(conveyor_dir, tmp_p
         arrays = {k: z[k] for k in z.files}
     meta = json.loads(str(arrays["meta_json"]))
     del meta["parts"]
+    # and the layout's keys as they were then, without their unit
+    conveyor = meta["layout"]["conveyor"]
+    meta["layout"]["conveyor"] = {k.removesuffix("_m_s").removesuffix("_m"): v
+                                  for k, v in conveyor.items()}  # fmt: skip
+    assert "belt_length" in meta["layout"]["conveyor"]
     arrays["meta_json"] = np.array(json.dumps(meta))
     old = tmp_path / "old"
     old.mkdir()

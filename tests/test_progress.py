@@ -185,3 +185,30 @@ def test_select_tables_are_written_atomically(tmp_path, monkeypatch):
     export.write_csv(tmp_path / "t.csv", ["a", "b"], [[1, 2]])
     assert calls == ["t.csv"]
     assert (tmp_path / "t.csv").read_bytes() == b"a,b\r\n1,2\r\n"
+
+
+def test_survey_schema_and_consignment_files_are_written_atomically(tmp_path, monkeypatch):
+    # the Python API's writers too, not only the select command's wrapping of them
+    from flexparcel.consignments.spec import (
+        ConsignmentSpec,
+        read_consignment_toml,
+        write_consignment_toml,
+    )
+    from flexparcel.io import atomic
+    from flexparcel.selection import make_synthetic_survey, write_schema, write_survey_csv
+
+    calls = []
+    real = atomic.write_atomic
+    monkeypatch.setattr(atomic, "write_atomic",
+                        lambda p, data: calls.append(Path(p).name) or real(p, data))  # fmt: skip
+    survey, _ = make_synthetic_survey(random_state=1)
+    write_survey_csv(survey, tmp_path / "survey.csv")
+    write_schema(survey.schema, tmp_path / "schema.toml")
+    spec = ConsignmentSpec("C1", "polybag", 300.0, 200.0, 40.0, "rigid", 200.0, 150.0, 30.0,
+                           500.0)  # fmt: skip
+    write_consignment_toml(spec, tmp_path / "c.toml")
+    assert calls == ["survey.csv", "schema.toml", "c.toml"]
+    assert read_consignment_toml(tmp_path / "c.toml") == spec
+    rows = (tmp_path / "survey.csv").read_text().splitlines()
+    assert len(rows) == len(survey) + 1
+    assert not _leftovers(tmp_path)

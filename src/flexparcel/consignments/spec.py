@@ -156,9 +156,10 @@ def write_consignment_toml(spec: ConsignmentSpec, path: str | Path) -> Path:
         f"mass_g = {float(spec.mass_g)!r}",
         f"content_fixed_to_packaging = {'true' if spec.content_fixed_to_packaging else 'false'}",
     ]
-    path = Path(path)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
+    from flexparcel.io.atomic import write_atomic
+
+    # atomic: a reader never meets half a consignment file
+    return write_atomic(Path(path), "\n".join(lines) + "\n")
 
 
 def _toml_string(s: str) -> str:

@@ -27,6 +27,9 @@ The parts (:func:`scene_parts`) are stored in ``results.npz``'s metadata under `
 consignment its packaging and content node ids (as ``[start, stop)`` ranges), the rigid
 content's node, inner half sizes and edge radius, and the materials; the belt, the deflector
 nodes and the drop plate. :func:`parts_from_meta` reads them back.
+
+Every VTU and PVD file is written atomically (a temporary file in the same folder, then
+``os.replace``), so ParaView never opens half a file of a run in progress or killed.
 """
 
 from __future__ import annotations
@@ -168,10 +171,13 @@ def parts_from_meta(meta: Mapping, node_count: int) -> dict | None:
                         "content_material": None})  # fmt: skip
         conveyor = meta.get("layout", {}).get("conveyor", {})
         belt = None
-        if conveyor:
-            belt = {"length_m": float(conveyor["belt_length"]),
-                    "width_m": float(conveyor["belt_width"]),
-                    "speed_m_s": float(conveyor["belt_speed"])}  # fmt: skip
+        if conveyor:  # keys with their unit since the layout carried them, plain before
+
+            def key(name: str, unit: str) -> float:
+                return float(conveyor.get(f"{name}_{unit}", conveyor.get(name)))
+
+            belt = {"length_m": key("belt_length", "m"), "width_m": key("belt_width", "m"),
+                    "speed_m_s": key("belt_speed", "m_s")}  # fmt: skip
         return {"version": PARTS_VERSION, "consignments": out, "belt": belt,
                 "deflectors": [node_ranges(np.flatnonzero(~used))], "deflector_thickness_m": None,
                 "plate_z_m": None, "legacy": True}  # fmt: skip
@@ -438,7 +444,7 @@ def write_paraview(
         fname = f"{name}_{k:04d}.vtu"
         mesh = meshio.Mesh(pos[nodes], local_cells, point_data=point_data,
                            cell_data=cell_data if local_cells else None)  # fmt: skip
-        meshio.write(directory / fname, mesh, binary=True)
+        _write_vtu(directory / fname, mesh)
         entries.append((float(result.time[k]), fname))
     return _write_pvd(directory / f"{name}.pvd", entries)
 
@@ -506,9 +512,8 @@ def write_paraview_boxes(
             point_data["velocity_m_per_s"] = (v[:, None, :3] + np.cross(v[:, None, 3:6], arm)
                                               ).reshape(-1, 3)  # fmt: skip
         fname = f"{name}_{k:04d}.vtu"
-        meshio.write(directory / fname, meshio.Mesh(pts.reshape(-1, 3), [(cell_type, conn)],
-                                                    point_data=point_data),
-                     binary=True)  # fmt: skip
+        _write_vtu(directory / fname, meshio.Mesh(pts.reshape(-1, 3), [(cell_type, conn)],
+                                                  point_data=point_data))  # fmt: skip
         entries.append((float(t), fname))
     return _write_pvd(directory / f"{name}.pvd", entries)
 
@@ -528,9 +533,8 @@ def write_paraview_static(
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     fname = f"{name}_0000.vtu"
-    meshio.write(directory / fname, meshio.Mesh(np.asarray(points, float), list(cells),
-                                                point_data=dict(point_data or {})),
-                 binary=True)  # fmt: skip
+    _write_vtu(directory / fname, meshio.Mesh(np.asarray(points, float), list(cells),
+                                              point_data=dict(point_data or {})))  # fmt: skip
     return _write_pvd(directory / f"{name}.pvd", [(float(time), fname)])
 
 
@@ -614,8 +618,22 @@ def write_scene_paraview(
     return files
 
 
+def _write_vtu(path: Path, mesh) -> Path:
+    """``mesh`` (a meshio.Mesh) as binary VTU at ``path``, atomically: ParaView opening a
+    run in progress, or a run killed mid-write, never meets half a file."""
+    import meshio
+
+    from flexparcel.io.atomic import atomic_path
+
+    with atomic_path(path) as tmp:
+        meshio.write(tmp, mesh, file_format="vtu", binary=True)
+    return path
+
+
 def _write_pvd(pvd: Path, entries: list[tuple[float, str]]) -> Path:
-    """A ParaView collection file listing ``(time, file)`` entries."""
+    """A ParaView collection file listing ``(time, file)`` entries, written atomically."""
+    from flexparcel.io.atomic import write_atomic
+
     lines = [
         '<?xml version="1.0"?>',
         '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
@@ -625,5 +643,4 @@ def _write_pvd(pvd: Path, entries: list[tuple[float, str]]) -> Path:
         f'    <DataSet timestep="{t!r}" group="" part="0" file={quoteattr(f)}/>' for t, f in entries
     ]
     lines += ["  </Collection>", "</VTKFile>", ""]
-    pvd.write_text("\n".join(lines))
-    return pvd
+    return write_atomic(pvd, "\n".join(lines))

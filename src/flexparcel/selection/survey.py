@@ -401,9 +401,9 @@ def write_schema(schema: SurveySchema, path: str | Path) -> Path:
             lines.append(f"unit = {_toml_value(c.unit)}")
         if c.weight != 1.0:
             lines.append(f"weight = {c.weight!r}")
-    path = Path(path)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return path
+    from flexparcel.io.atomic import write_atomic
+
+    return write_atomic(Path(path), "\n".join(lines) + "\n")  # never half a schema
 
 
 def describe_schema(schema: SurveySchema, survey: Survey | None = None) -> str:
@@ -806,11 +806,12 @@ def _csv_cell(v: object) -> str:
 
 def write_survey_csv(survey: Survey, path: str | Path) -> Path:
     """Write ``survey`` as CSV (id column, then the schema columns; missing = empty cell)."""
-    path = Path(path)
+    from flexparcel.io.atomic import write_atomic
+
     records = survey.records()
-    with path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(list(records[0].keys()))
-        for rec in records:
-            w.writerow([_csv_cell(v) for v in rec.values()])
-    return path
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(list(records[0].keys()))
+    for rec in records:
+        w.writerow([_csv_cell(v) for v in rec.values()])
+    return write_atomic(Path(path), buf.getvalue())  # never half a table
