@@ -109,6 +109,18 @@ def _solid(**kw):
     return SolidMaterial(**{**_SOLID, **kw})
 
 
+def _contact(law):
+    """A square sheet on a plane with ``law`` through the builder (where laws are checked)."""
+    b, ids = _builder_with_square()
+    b.add_contact(ids, b.add_plane((0, 0, 0), (0, 0, 1)), law)
+
+
+def _load_snapshot(path):
+    from flexparcel.consignments.snapshot import load_snapshot
+
+    return load_snapshot(path)
+
+
 def _builder_with_square():
     b = fp.ModelBuilder()
     ids = b.add_shell_mesh(*fp.mesh.rectangle(1.0, 1.0, 2, 2), material=_shell())
@@ -120,8 +132,8 @@ def _cli_case(argv_of: Callable[[Path], list[str]], capsys_box: dict) -> Callabl
         argv = argv_of(tmp)
         code, msg = _cli(argv, capsys_box["capsys"])
         capsys_box["code"] = code
-        out = Path(argv[argv.index("--out") + 1])
         if argv_of is _missing_survey_folder:
+            out = Path(argv[argv.index("--out") + 1])
             msg += f" (the folder out is {'kept' if out.exists() else 'removed'})"
         return msg
 
@@ -250,6 +262,22 @@ CASES: list[Case] = [
     Case("a truncated checkpoint (`load_checkpoint`, a resumed conveyor run)",
          r"CheckpointError: checkpoint .*checkpoint\.npz: not a readable \.npz file: truncated",
          _damaged_checkpoint),
+    Case("an empty checkpoint (`load_checkpoint`)",
+         r"CheckpointError: checkpoint .*checkpoint\.npz: the file is empty",
+         lambda tmp: _raises(load_checkpoint, _empty(tmp / "checkpoint.npz"))),
+    Case("an .npz of something else as a checkpoint (`load_checkpoint`)",
+         r"CheckpointError: checkpoint .*checkpoint\.npz: not a flexparcel checkpoint \(no "
+         r"'header' entry; it holds something\)",
+         lambda tmp: _raises(load_checkpoint, _foreign(tmp / "checkpoint.npz"))),
+    Case("`load_snapshot` on a truncated .npz (the Python API)",
+         r"SnapshotError: snapshot .*s\.npz: not a readable \.npz file: truncated or damaged",
+         lambda tmp: _raises(_load_snapshot, _truncated(tmp / "s.npz"))),
+    Case("`load_snapshot` on an .npz of something else",
+         r"SnapshotError: snapshot .*s\.npz: not a flexparcel snapshot \(no 'meta'",
+         lambda tmp: _raises(_load_snapshot, _foreign(tmp / "s.npz"))),
+    Case("`flexparcel view DIR` with no results in DIR",
+         r"view: error: .*empty: not a results folder \(no results\.npz",
+         _cli_case(lambda tmp: (tmp / "empty").mkdir() or ["view", str(tmp / "empty")], C), 2),
     # ---- the SI Python API: values plausible only in the paper's units
     Case("`ShellMaterial(youngs_modulus=926)` (MPa typed into the SI API)",
          r"UnitWarning: ShellMaterial\.youngs_modulus = 926 Pa is implausibly low for SI units"
@@ -258,6 +286,21 @@ CASES: list[Case] = [
     Case("`SolidMaterial(youngs_modulus=5)` (MPa typed into the SI API)",
          r"UnitWarning: SolidMaterial\.youngs_modulus = 5 Pa .*did you mean 5 MPa = 5e6 Pa\?",
          lambda tmp: _warns(_solid, youngs_modulus=5)),
+    Case("`ContactLaw(stiffness=649)` given to the builder (N/mm typed into the per-area SI "
+         "law)",
+         r"UnitWarning: add_contact: ContactLaw\.stiffness = 649 N/m\^3 \(per unit area\) is "
+         r"implausibly low .*did you mean 649 N/mm per 10 mm node.*"
+         r"from_paper_units\(c_N_per_mm=649\) = 6\.49e9 N/m\^3",
+         lambda tmp: _warns(_contact, fp.ContactLaw(stiffness=649.0))),
+    Case("`ContactLaw(mu_static=0.3, mu_dynamic=0.5)` given to the builder",
+         r"PlausibilityWarning: add_contact: ContactLaw\.mu_dynamic = 0\.5 > mu_static = 0\.3: "
+         r"friction then grows with the slip speed",
+         lambda tmp: _warns(_contact, fp.ContactLaw(stiffness=1e8, mu_static=0.3,
+                                                    mu_dynamic=0.5))),
+    Case("`ContactLaw(stiffness=1e8, mu_dynamic=0.3)` (mu_static left at 0)",
+         r"PlausibilityWarning: .*mu_dynamic = 0\.3 > mu_static = 0 \(mu_static was left at "
+         r"its default 0\?\)",
+         lambda tmp: _warns(_contact, fp.ContactLaw(stiffness=1e8, mu_dynamic=0.3))),
     # ---- the existing checks of tests/test_bad_input.py
     Case("`ShellMaterial(youngs_modulus=-1)`", r"youngs_modulus must be > 0 Pa",
          lambda tmp: _raises(_shell, youngs_modulus=-1.0)),

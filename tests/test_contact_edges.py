@@ -41,7 +41,7 @@ def test_edge_contact_bad_input():
     pts, quads = fp.mesh.rectangle(0.1, 0.1, 2, 2)
     ids = b.add_shell_mesh(pts, quads, material=fp.ShellMaterial(1e9, 0.3, 1000.0, 1e-3))
     plane = b.add_plane((0, 0, 0), (0, 0, 1))
-    law = ContactLaw(stiffness=1e4)
+    law = ContactLaw(stiffness=1e8)  # per area [N/m^3]
     with pytest.raises(ValueError, match=r"unknown plane 5"):
         b.add_edge_contact(ids, 5, law)
     with pytest.raises(ValueError, match=r"no shell edge"):
@@ -149,7 +149,7 @@ def test_edge_face_contact_bad_input():
     b = fp.ModelBuilder()
     pts, quads = fp.mesh.rectangle(0.1, 0.1, 2, 2)
     ids = b.add_shell_mesh(pts, quads, material=fp.ShellMaterial(1e9, 0.3, 1000.0, 1e-3))
-    law = ContactLaw(stiffness=1e4)
+    law = ContactLaw(stiffness=1e8)  # per area [N/m^3]
     with pytest.raises(ValueError, match=r"add_edge_face_contact: thickness must be > 0 m"):
         b.add_edge_face_contact(ids, ids, law, thickness=0.0)
     with pytest.raises(ValueError, match=r"add_edge_face_contact: node_ids contain no shell"):

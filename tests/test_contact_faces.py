@@ -47,7 +47,7 @@ def test_face_contact_bad_input():
     b = fp.ModelBuilder()
     pts, quads = fp.mesh.rectangle(0.1, 0.1, 2, 2)
     ids = b.add_shell_mesh(pts, quads, material=fp.ShellMaterial(1e9, 0.3, 1000.0, 1e-3))
-    law = ContactLaw(stiffness=1e4)
+    law = ContactLaw(stiffness=1e8)  # per area [N/m^3]
     import pytest
 
     with pytest.raises(ValueError, match=r"thickness must be > 0 m"):

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from flexparcel.builder.law_checks import check_law
 from flexparcel.builder.mesh_checks import shell_cells
 from flexparcel.builder.sparsity import SparsePattern
 from flexparcel.contact.bodies import EdgeBoxSet, NodeBoxSet
@@ -846,8 +847,11 @@ _SOLID_FACES = {
 
 
 def _require_law(name: str, law) -> None:
+    """A :class:`ContactLaw`, else ``TypeError``; implausible values are warned about
+    (:func:`~flexparcel.builder.law_checks.check_law`)."""
     if not isinstance(law, ContactLaw):
         raise TypeError(f"{name}: law must be a ContactLaw")
+    check_law(name, law)
 
 
 def _positive_thickness(name: str, thickness) -> float:

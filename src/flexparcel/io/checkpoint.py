@@ -112,10 +112,16 @@ def load_checkpoint(path: str | Path) -> RunCheckpoint:
     naming the file for anything unreadable, of another format or of another version."""
     path = Path(path)
     data = read_npz(path, "checkpoint", CheckpointError)
+    if "header" not in data:  # an .npz of something else: say what it holds
+        held = ", ".join(sorted(data)[:4]) or "nothing"
+        raise CheckpointError(
+            f"checkpoint {path}: not a flexparcel checkpoint (no 'header' entry; it holds "
+            f"{held}); flexparcel run conveyor and simulate(checkpoint=...) write them"
+        )
     try:
         header = json.loads(str(data["header"]))
-    except (KeyError, json.JSONDecodeError) as e:
-        raise CheckpointError(f"checkpoint {path}: no valid header") from e
+    except json.JSONDecodeError as e:
+        raise CheckpointError(f"checkpoint {path}: its header is not valid JSON ({e})") from e
     if not isinstance(header, dict) or header.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"checkpoint {path}: not a {CHECKPOINT_FORMAT} file")
     if header.get("version") != CHECKPOINT_VERSION:

@@ -7,7 +7,14 @@ from dataclasses import dataclass
 
 from flexparcel.model.checks import finite_number
 
-__all__ = ["ShellMaterial", "validate_elastic", "UnitWarning", "PLAUSIBLE_MIN_YOUNGS_MODULUS"]
+__all__ = [
+    "ShellMaterial",
+    "validate_elastic",
+    "UnitWarning",
+    "PlausibilityWarning",
+    "PLAUSIBLE_MIN_YOUNGS_MODULUS",
+    "si_text",
+]
 
 PLAUSIBLE_MIN_YOUNGS_MODULUS = 1e5
 """Young's moduli below this [Pa] are warned about: softer than any packaging film, board
@@ -22,11 +29,20 @@ class UnitWarning(UserWarning):
     (e.g. patch tests with E = 1)."""
 
 
-def _si(v: float) -> str:
-    """``9.26e+08`` -> ``9.26e8`` (3 significant digits)."""
+class PlausibilityWarning(UserWarning):
+    """A value that is valid but almost certainly not meant (e.g. a dynamic friction
+    coefficient above the static one); the message says why. Silence it with
+    ``warnings.simplefilter("ignore", PlausibilityWarning)`` where it is meant."""
+
+
+def si_text(v: float) -> str:
+    """``9.26e+08`` -> ``9.26e8`` (3 significant digits), as a message shows a value."""
     text = f"{v:.3g}"
     mant, sep, exp = text.partition("e")
     return f"{mant}e{int(exp)}" if sep else text
+
+
+_si = si_text
 
 
 def _check_finite(owner: str, name: str, value: float) -> float:
