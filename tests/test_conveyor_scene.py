@@ -349,13 +349,13 @@ def test_deflector_edge_depths_measure_packaging_edges_at_the_tips_and_ends(snap
     frames[3, node] = near(cm.parts.deflector_tips[1], 2.0 * h)  # not within h
     res = SimpleNamespace(time=np.array([0.0, 0.01, 0.02, 0.03]), positions=frames)
     d = deflector_edge_depths(cm, res)
-    assert d["c0"] == {"depth_m": None, "thickness_m": h, "time": None, "edge": None}
+    assert d["c0"] == {"depth_m": None, "thickness_m": h, "time_s": None, "edge": None}
     assert d["c1"]["depth_m"] == pytest.approx(0.9 * h, rel=1e-9)
-    assert (d["c1"]["time"], d["c1"]["edge"]) == (0.02, "end 2")
+    assert (d["c1"]["time_s"], d["c1"]["edge"]) == (0.02, "end 2")
     res = SimpleNamespace(time=res.time[[0, 1, 3]], positions=frames[[0, 1, 3]])
     d = deflector_edge_depths(cm, res)["c1"]
     assert d["depth_m"] == pytest.approx(0.4 * h, rel=1e-9)
-    assert (d["time"], d["edge"]) == (0.01, "tip 1")
+    assert (d["time_s"], d["edge"]) == (0.01, "tip 1")
 
 
 @pytest.fixture(scope="module")
@@ -373,16 +373,18 @@ def test_four_consignments_move_downstream_and_are_deflected(conveyor_run):
     cons = r["consignments"]
     assert list(cons) == ["a", "b", "c", "d"]
     for name, c in cons.items():
-        x, y = np.array(c["trajectory"]["x"]), np.array(c["trajectory"]["y"])
+        x, y = np.array(c["trajectory"]["x_m"]), np.array(c["trajectory"]["y_m"])
         assert x[-1] - x[0] > 2e-3, name  # downstream
         k = 0 if name in ("a", "b") else 1  # a, b start beside deflector 0 (y > 0), c, d 1
-        assert c["deflector_contact_time"][k] > 0.0, name
-        assert c["deflector_contact_time"][1 - k] == 0.0, name
+        assert c["deflector_contact_duration_s"][k] > 0.0, name
+        assert c["deflector_contact_duration_s"][1 - k] is None, name  # never: null
+        assert "deflector_contact_duration_s" in c["notes"], name
         # pushed along the face towards the centre line: |y| falls (the belt alone drives
         # only x and every copy starts with v_y = 0; the 12 ms run of the example file
         # moved them 3 mm)
         assert abs(y[-1]) < abs(y[0]) - 1e-3, name
-        assert c["peak_contact_force"] > 0.0, name
+        assert c["peak_contact_force_N"] > 0.0, name
+        assert max(c["contact_force_N"]) == c["peak_contact_force_N"], name
     assert r["parameters"]["belt_speed_m_s"] == 1.6 and r["parameters"]["t_end_s"] == 0.01
     assert r["friction"]["a"]["belt"] == [0.5, 0.4]  # bubble_wrap on PU, table default
     assert r["deflector_crossings"] == {"a": None, "b": None, "c": None, "d": None}
@@ -391,10 +393,15 @@ def test_four_consignments_move_downstream_and_are_deflected(conveyor_run):
 def test_conveyor_cli_writes_its_files(conveyor_run, capsys):
     out, r = conveyor_run
     for name in ("responses.json", "results.npz", "paraview/conveyor.pvd",
-                 "paraview/contents.pvd", "snapshots.png", "trajectories.png",
-                 "animation.gif"):  # fmt: skip
+                 "paraview/contents.pvd", "snapshots.png", "trajectories.png", "motion.png",
+                 "animation.gif", "view.html", "report.html"):  # fmt: skip
         assert (out / name).is_file() and (out / name).stat().st_size > 0, name
-    assert set(r["files"]) >= {"snapshots", "trajectories", "animation", "paraview"}
+    assert set(r["files"]) >= {"snapshots", "trajectories", "animation", "paraview", "report"}
+    # the report: the verdict of a run shorter than the jam window, a row per consignment
+    report = (out / "report.html").read_text()
+    assert "Jam verdict: not reached in this run" in report
+    assert all(f"<tr><td>{name}</td>" in report for name in "abcd")
+    assert r["files"]["report"] == str(out / "report.html")
     from PIL import Image
 
     with Image.open(out / "animation.gif") as gif:

@@ -1,7 +1,8 @@
 """``flexparcel demo`` (``make demo``): assemble the paper's KP/BW consignment, run its swing,
-vertical and horizontal drop tests with the calibrated parameters of Table 6, and write a
-Markdown report comparing the responses with the paper's Table 7 and the wall times with
-RecurDyn's.
+vertical and horizontal drop tests with the calibrated parameters of Table 6, and write the
+report: ``report.html`` (the user's: pictures embedded, the 3-D viewers, responses next to the
+paper's Table 7 and the real-world tests, wall times next to RecurDyn's;
+:func:`flexparcel.viz.report.write_demo_report`) and the same numbers as ``report.md``.
 
 ``--quick`` runs the same on a coarse mesh (25 mm shells) with shorter simulated times, as a
 check of the pipeline (drops from 50 mm so that the shortened runs still hold the impact);
@@ -16,25 +17,18 @@ import platform
 import time
 from pathlib import Path
 
-__all__ = ["register", "run", "PAPER_TABLE7", "RECURDYN_WALL_S", "REAL_TEST_MM"]
+from flexparcel.scenarios.paper_reference import RECURDYN_WALL_S, TEST_REFERENCES
 
-PAPER_TABLE7 = {
-    "first_swing_mm": 128.0,
-    "second_swing_mm": 27.0,
-    "drop-vertical": 6.2,
-    "drop-horizontal": 4.5,
-}
-"""Paper Table 7: RecurDyn re-runs of KP/BW with the Table 6 parameters [mm]."""
-REAL_TEST_MM = {
-    "first_swing_mm": 127.0,
-    "second_swing_mm": 32.0,
-    "drop-vertical": 7.0,
-    "drop-horizontal": 4.0,
-}
+__all__ = ["register", "run", "PAPER_TABLE7", "RECURDYN_WALL_S", "REAL_TEST_MM",
+           "report_markdown"]  # fmt: skip
+
+PAPER_TABLE7 = {ref.response if ref.test == "swing" else ref.test: ref.table7
+                for ref in TEST_REFERENCES}  # fmt: skip
+"""Paper Table 7: RecurDyn re-runs of KP/BW with the Table 6 parameters [mm]
+(:data:`flexparcel.scenarios.paper_reference.TEST_REFERENCES`)."""
+REAL_TEST_MM = {ref.response if ref.test == "swing" else ref.test: ref.real
+                for ref in TEST_REFERENCES}  # fmt: skip
 """The real-world tests the calibration aimed at [mm] (paper Fig. 27 and section 4.3)."""
-RECURDYN_WALL_S = {"swing": 384.0, "drop-vertical": 125.0, "drop-horizontal": 76.0}
-"""RecurDyn wall times of Table 7 [s] (Intel i9-13900H, 4 cores) for the paper's simulated
-times (1.4 s swing, 0.3 s drops)."""
 
 FULL = {"element_size_mm": 10.0, "drop_height": 0.200,
         "t_end": {"swing": 1.4, "drop-vertical": 0.3, "drop-horizontal": 0.3}}  # fmt: skip
@@ -74,14 +68,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from flexparcel.cli.outdir import report_failure
-    from flexparcel.cli.run_cmd import TESTS, format_responses, run_and_write
     from flexparcel.cli.snapshots import assemble_job
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
-    from flexparcel.integrate.errors import ConvergenceError
-    from flexparcel.io.atomic import write_atomic
-    from flexparcel.scenarios.consignment_tests import TABLE6_VALUES
-    from flexparcel.scenarios.registry import get_scenario
 
     mode = QUICK if args.quick else FULL
     size_mm = args.element_size if args.element_size is not None else mode["element_size_mm"]
@@ -97,6 +86,22 @@ def run(args: argparse.Namespace) -> int:
         report_failure(f"flexparcel demo: assembly failed: {exc}")
         return 1
     print(f"assembled in {snap.info['wall_s']:.1f} s")
+    results = _run_tests(snap, out, mode, progress)
+    total = time.perf_counter() - wall0
+    report = _write_reports(out, build, snap.info, results, quick=args.quick, total_wall=total)
+    print(f"report: {report.resolve()}")  # the last line: what to open
+    return 0 if all(isinstance(r, dict) for r in results.values()) else 1
+
+
+def _run_tests(snap, out: Path, mode: dict, progress: bool) -> dict[str, dict | str]:
+    """Swing, vertical and horizontal drop with Table 6 into ``out/TEST``: test -> its
+    ``responses.json`` content, or the message of its failure (the others still run)."""
+    from flexparcel.cli.outdir import report_failure
+    from flexparcel.cli.run_cmd import TESTS, format_responses, run_and_write
+    from flexparcel.integrate.errors import ConvergenceError
+    from flexparcel.scenarios.consignment_tests import TABLE6_VALUES
+    from flexparcel.scenarios.registry import get_scenario
+
     results: dict[str, dict | str] = {}
     for test in TESTS:
         options = {} if test == "swing" else {"drop_height": mode["drop_height"]}
@@ -110,46 +115,87 @@ def run(args: argparse.Namespace) -> int:
         except ConvergenceError as exc:  # report it and go on with the other tests
             results[test] = str(exc)
             report_failure(f"flexparcel demo: {test} failed: {exc}")
-    text = report_markdown(build, snap.info, results, quick=args.quick,
-                           total_wall=time.perf_counter() - wall0)  # fmt: skip
-    report = out / "report.md"
-    write_atomic(report, text)
-    print(f"report: {report.resolve()}")
-    return 0 if all(isinstance(r, dict) for r in results.values()) else 1
+    return results
+
+
+def _write_reports(out: Path, build, info: dict, results: dict, *, quick: bool,
+                   total_wall: float) -> Path:  # fmt: skip
+    """``out/report.md`` and ``out/report.html`` (returned: the user's report)."""
+    from flexparcel.io.atomic import write_atomic
+    from flexparcel.viz.html import esc
+    from flexparcel.viz.report import write_demo_report
+
+    write_atomic(out / "report.md", report_markdown(build, info, results, quick=quick,
+                                                    total_wall=total_wall))  # fmt: skip
+    print(f"report (Markdown): {(out / 'report.md').resolve()}")
+    finished = {t: t for t, r in results.items() if isinstance(r, dict)}
+    failed = {t: r for t, r in results.items() if isinstance(r, str)}
+    note = f'<p class="note">{esc(_quick_text())}</p>' if quick else ""
+    return write_demo_report(out, facts=esc(" ".join(_facts(build, quick, total_wall))),
+                             assembly=info, tests=finished, failures=failed, quick_note=note,
+                             explanation=f"<h2>Why the numbers differ</h2><p>"
+                             f"{esc(_why_text(build))}</p>")  # fmt: skip
+
+
+def _facts(build, quick: bool, total_wall: float) -> list[str]:
+    """The report's opening sentences: version, machine, command, mesh, parameters."""
+    from flexparcel import __version__
+
+    threads = os.environ.get("OMP_NUM_THREADS", "unset")
+    cpu = platform.processor() or platform.machine()
+    return [
+        f"flexparcel {__version__}, {time.strftime('%Y-%m-%d %H:%M')}, {cpu}, "
+        f"{os.cpu_count()} CPU cores (OMP_NUM_THREADS={threads}).",
+        f"Command: `flexparcel demo{' --quick' if quick else ''}`; "
+        f"{build.element_size * 1e3:g} mm shells; parameters: the paper's Table 6 (E = 926 "
+        "MPa, damping ratio 1.71e-3 s, packaging-content 649 N/mm / 0.579 Ns/mm, "
+        f"packaging-ground 611 N/mm / 0.591 Ns/mm). Total wall time {total_wall:.0f} s.",
+    ]
+
+
+def _quick_text() -> str:
+    return (f"Quick mode: coarse mesh, shortened simulated times and drops from "
+            f"{QUICK['drop_height'] * 1e3:g} mm instead of 200 mm. A check that the pipeline "
+            "runs, not a comparison with the paper: the swings need the full 1.4 s, and "
+            "RecurDyn's wall times below are scaled linearly to our simulated times.")  # fmt: skip
+
+
+def _why_text(build) -> str:
+    return (
+        "The parameters are the paper's calibrated ones, not tuned here. The paper does not "
+        "print the packaging's measured thickness or density, nor the exact envelope "
+        "geometry; ours are documented assumptions (flexparcel.consignments.materials: "
+        f"{build.material.thickness * 1e3:g} mm, {build.material.areal_density * 1e3:g} "
+        "g/m^2). With E fixed, the bending stiffness grows with the cube of the thickness, so "
+        "the swing depends strongly on it; the drops depend on the contact parameters, the "
+        "content's mass and the packaging's shape after assembly. Friction and the contact "
+        "damping ramp are not given in the paper either (we use 0.3 and 0.1 mm)."
+    )
 
 
 def _fmt(v: float | None, digits: int = 1) -> str:
     return "–" if v is None else f"{v:.{digits}f}"
 
 
+def _measured(r: dict | str | None, key: str) -> str:
+    """A response of a test's ``responses.json`` content in the table: its value, "not
+    reached in this run" where the run did not reach it (never 0), "–" for a failed test."""
+    if not isinstance(r, dict):
+        return "–"
+    resp = r.get("responses", {}).get(key)
+    value = resp.get("value") if resp is not None else r.get(key)
+    return "not reached in this run" if value is None else f"{value:.1f}"
+
+
 def report_markdown(build, assembly_info: dict, results: dict, *, quick: bool,
                     total_wall: float) -> str:  # fmt: skip
     """The demo report (Markdown) from the assembly info and each test's ``responses.json``
     content (a dict) or failure message (a str); picture paths relative to the report."""
-    from flexparcel import __version__
-
-    h = build.element_size * 1e3
-    threads = os.environ.get("OMP_NUM_THREADS", "unset")
-    cpu = platform.processor() or platform.machine()
-    lines = [
-        "# flexparcel demo: the paper's KP/BW consignment",
-        "",
-        f"flexparcel {__version__}, {time.strftime('%Y-%m-%d %H:%M')}, {cpu}, "
-        f"{os.cpu_count()} CPU cores (OMP_NUM_THREADS={threads}).",
-        f"Command: `flexparcel demo{' --quick' if quick else ''}`; {h:g} mm shells; parameters: "
-        "the paper's Table 6 (E = 926 MPa, damping ratio 1.71e-3 s, packaging-content 649 "
-        "N/mm / 0.579 Ns/mm, packaging-ground 611 N/mm / 0.591 Ns/mm). Total wall time "
-        f"{total_wall:.0f} s.",
-        "",
-    ]
+    lines = ["# flexparcel demo: the paper's KP/BW consignment", "",
+             *_facts(build, quick, total_wall), "", "The report with the pictures and the "
+             "3-D viewers: report.html.", ""]  # fmt: skip
     if quick:
-        lines += [
-            "> **Quick mode**: coarse mesh, shortened simulated times and drops from "
-            f"{QUICK['drop_height'] * 1e3:g} mm instead of 200 mm. A check that the pipeline "
-            "runs, not a comparison with the paper: the swings need the full 1.4 s, and "
-            "RecurDyn's wall times below are scaled linearly to our simulated times.",
-            "",
-        ]
+        lines += [f"> **{_quick_text().replace(':', ':**', 1)}", ""]
     lines += [
         "## Assembly",
         "",
@@ -168,14 +214,18 @@ def report_markdown(build, assembly_info: dict, results: dict, *, quick: bool,
         "|---|---:|---:|---:|---:|",
     ]
     for label, test, key, ref in _RESPONSE_ROWS:
-        r = results.get(test)
-        ours = r.get(key) if isinstance(r, dict) else None
+        shown = _measured(results.get(test), key)
         paper = PAPER_TABLE7[ref]
-        ratio = None if ours is None else ours / paper
-        lines.append(
-            f"| {label} | {_fmt(ours)} | {paper:g} | {_fmt(ratio, 2)} | {REAL_TEST_MM[ref]:g} |"
-        )
-    lines += [
+        ratio = f"{float(shown) / paper:.2f}" if shown[:1].isdigit() else "–"
+        lines.append(f"| {label} | {shown} | {paper:g} | {ratio} | {REAL_TEST_MM[ref]:g} |")
+    return "\n".join(lines + _markdown_tail(build, results))
+
+
+def _markdown_tail(build, results: dict) -> list[str]:
+    """The wall-time table, the why and each test's pictures."""
+    from flexparcel.scenarios.paper_reference import recurdyn_wall_s
+
+    lines = [
         "",
         "## Wall times next to RecurDyn's",
         "",
@@ -186,8 +236,7 @@ def report_markdown(build, assembly_info: dict, results: dict, *, quick: bool,
         r = results.get(test)
         if isinstance(r, dict):
             sim, wall = r["simulated_s"], r["wall_s"]
-            paper_sim = 1.4 if test == "swing" else 0.3
-            recurdyn = RECURDYN_WALL_S[test] * sim / paper_sim
+            recurdyn = recurdyn_wall_s(test, sim)
             lines.append(
                 f"| {test} | {sim:g} | {wall:.1f} | {recurdyn:.0f} | {wall / recurdyn:.2f} |"
             )
@@ -201,14 +250,7 @@ def report_markdown(build, assembly_info: dict, results: dict, *, quick: bool,
         "",
         "## Why the numbers differ",
         "",
-        "The parameters are the paper's calibrated ones, not tuned here. The paper does not "
-        "print the packaging's measured thickness or density, nor the exact envelope "
-        "geometry; ours are documented assumptions (`flexparcel.consignments.materials`: "
-        f"{build.material.thickness * 1e3:g} mm, {build.material.areal_density * 1e3:g} g/m^2). "
-        "With E fixed, the bending stiffness grows with the cube of the thickness, so the "
-        "swing depends strongly on it; the drops depend on the contact parameters, the "
-        "content's mass and the packaging's shape after assembly. Friction and the contact "
-        "damping ramp are not given in the paper either (we use 0.3 and 0.1 mm).",
+        _why_text(build),
         "",
     ]
     for test in RECURDYN_WALL_S:
@@ -218,7 +260,8 @@ def report_markdown(build, assembly_info: dict, results: dict, *, quick: bool,
             lines += [f"![{test} frames]({test}/frames.png)", "",
                       f"![{test} response]({test}/response.png)", "",
                       f"Files: `{test}/responses.json`, `{test}/results.npz`, "
-                      f"`{test}/paraview/packaging.pvd` (ParaView).", ""]  # fmt: skip
+                      f"`{test}/paraview/packaging.pvd` (ParaView), `{test}/view.html` "
+                      "(3-D viewer).", ""]  # fmt: skip
         else:
             lines += [f"Failed: {r}", ""]
-    return "\n".join(lines)
+    return lines

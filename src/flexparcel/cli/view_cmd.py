@@ -1,6 +1,7 @@
 """``flexparcel view``: the 3-D viewer page of a results folder, ``DIR/view.html``
 (:mod:`flexparcel.viz.viewer`), for a run written before viewers existed or with another
-size budget."""
+size budget; and, for a folder with ``responses.json``, its report ``DIR/report.html``
+again (:mod:`flexparcel.viz.report`), which embeds the viewer."""
 
 from __future__ import annotations
 
@@ -20,7 +21,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "packaging, contents, belt and deflectors in 3-D, animated over the saved frames, "
         "coloured by displacement, speed, membrane strain, consignment or contact force where "
         "the run recorded it. Frames are subsampled to stay within --max-mb; the page says so. "
-        "flexparcel run writes this page by itself.",
+        "DIR/report.html, the run's report that embeds the viewer, is written again too. "
+        "flexparcel run writes both by itself.",
     )
     p.add_argument("results", type=Path, metavar="DIR", help="results folder (with results.npz)")
     p.add_argument("--out", type=Path, default=None, metavar="FILE.html",
@@ -54,4 +56,17 @@ def run(args: argparse.Namespace) -> int:
         return 2
     size = path.stat().st_size / 1e6
     print(f"viewer: {path} ({size:.1f} MB); open it in a web browser")
+    if args.out is None and (args.results / "responses.json").is_file():
+        _rewrite_report(args.results)
     return 0
+
+
+def _rewrite_report(folder: Path) -> None:
+    """DIR/report.html again (it embeds the viewer); a note, not a failure, where the
+    folder's responses.json cannot be reported on (the viewer is written)."""
+    from flexparcel.viz.report import ReportError, write_report
+
+    try:
+        print(f"report: {write_report(folder)}")
+    except (ReportError, OSError) as exc:
+        print(f"flexparcel view: report not written: {exc}", file=sys.stderr)

@@ -111,13 +111,15 @@ class ConsignmentTest(ScenarioBase):
 
     def summary(self, result: ScenarioResult) -> dict:
         """``responses.json`` content (without ``files``): the run's summary with its
-        responses in mm under their names, ``element_size_mm``, and ``responses`` with
-        units and notes."""
+        responses in mm under their names (null where the run did not reach one: never 0),
+        ``element_size_mm``, and ``responses`` with units and notes."""
         run: TestRun = result.record
         out = run.summary()
         out["element_size_mm"] = result.settings["element_size_mm"]
         out.update(self._summary_settings(result))
-        out["responses"] = {k: r.to_dict() for k, r in self.responses(result).items()}
+        responses = self.responses(result)
+        out.update({k: r.value for k, r in responses.items()})
+        out["responses"] = {k: r.to_dict() for k, r in responses.items()}
         return out
 
     def _summary_settings(self, result: ScenarioResult) -> dict:

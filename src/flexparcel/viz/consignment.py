@@ -218,6 +218,21 @@ def plot_frames(
     return _finish(fig, path, title)
 
 
+_REFERENCE_STYLE = {"table7": ("0.35", "--"), "real": ("k", ":")}
+"""Colour and line style of the reference lines: paper Table 7 (RecurDyn), real-world test."""
+
+
+def _reference_lines(ax, references: Sequence[tuple[str, float, str]]) -> None:
+    """Horizontal reference lines ``(label, height [mm], kind)``, kind ``"table7"`` or
+    ``"real"``; one legend entry per label."""
+    shown = set()
+    for label, y, kind in references:
+        colour, style = _REFERENCE_STYLE[kind]
+        ax.axhline(y, color=colour, linewidth=0.9, linestyle=style,
+                   label=None if label in shown else label)  # fmt: skip
+        shown.add(label)
+
+
 def plot_swing_curve(
     path: str | Path,
     time: np.ndarray,
@@ -226,14 +241,18 @@ def plot_swing_curve(
     first: tuple[int, float] | None,
     second: tuple[int, float] | None,
     title: str = "Swing test",
+    references: Sequence[tuple[str, float, str]] = (),
 ) -> Path:
     """The free end's horizontal position relative to the clamp edge [m] (k,) over ``time``
     [s] (k,), with the first and second swing marked: ``(frame index, response [m])`` each,
-    or None where there is none."""
+    or None where there is none. ``references``: ``(label, swing [m], kind)`` drawn where
+    that swing would peak (the first past the clamp, -swing; the second back, +swing), kind
+    ``"table7"`` or ``"real"``."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.0), dpi=120)
     ax.plot(time, 1e3 * np.asarray(x_rel), color="tab:blue", label="free end x - clamp edge x")
     ax.axhline(0.0, color="0.4", linewidth=0.8, linestyle="--", label="below the clamp")
+    _reference_lines(ax, [(label, 1e3 * y, kind) for label, y, kind in references])
     for mark, name, colour in ((first, "first swing", "tab:red"),
                                (second, "second swing", "tab:green")):  # fmt: skip
         if mark is None:
@@ -259,21 +278,30 @@ def plot_drop_curve(
     *,
     touch: tuple[float, float] | None,
     peak: int | None,
-    rebound: float,
+    rebound: float | None,
     title: str = "Drop test",
+    references: Sequence[tuple[str, float, str]] = (),
 ) -> Path:
     """Height of the centre of mass [m] (k,) over ``time`` [s] (k,): ``touch`` = (time [s],
     centre height [m]) at the first contact with the plate, ``peak`` the frame of the highest
-    point after the impact, ``rebound`` [m] the response (peak height minus touch height)."""
+    point after the impact, ``rebound`` [m] the response (peak height minus touch height;
+    None: not reached in this run, so not marked). The rebound is measured from the height
+    at the first contact, drawn as its reference line, and its peak level is drawn too.
+    ``references``: ``(label, rebound [m], kind)`` drawn at that rebound above the touch
+    height, kind ``"table7"`` or ``"real"``."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7.0, 4.0), dpi=120)
     ax.plot(time, 1e3 * np.asarray(z_centre), color="tab:blue", label="centre of mass height")
     if touch is not None:
         t_touch, z_touch = touch
-        ax.axhline(1e3 * z_touch, color="0.4", linewidth=0.8, linestyle="--",
-                   label="height at first contact")  # fmt: skip
+        ax.axhline(1e3 * z_touch, color="tab:orange", linewidth=0.9, linestyle="-.",
+                   label="height at first contact (rebound measured from here)")  # fmt: skip
         ax.plot([t_touch], [1e3 * z_touch], "s", color="0.2")
-        if peak is not None:
+        _reference_lines(ax, [(label, 1e3 * (z_touch + r), kind)
+                              for label, r, kind in references])  # fmt: skip
+        if peak is not None and rebound is not None:
+            top = 1e3 * (z_touch + rebound)
+            ax.axhline(top, color="tab:red", linewidth=0.8, label="rebound peak")
             ax.plot([time[peak]], [1e3 * z_centre[peak]], "o", color="tab:red")
             ax.annotate(f"rebound {1e3 * rebound:.1f} mm", (time[peak], 1e3 * z_centre[peak]),
                         textcoords="offset points", xytext=(8, 6), color="tab:red")  # fmt: skip

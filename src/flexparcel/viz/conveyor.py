@@ -20,7 +20,8 @@ from flexparcel.viz.consignment import (
     _pyplot,
 )
 
-__all__ = ["plot_conveyor_snapshots", "plot_trajectories", "animate_conveyor"]
+__all__ = ["plot_conveyor_snapshots", "plot_trajectories", "plot_conveyor_motion",
+           "centroid_speed", "animate_conveyor"]  # fmt: skip
 
 BELT_COLOUR = "#d9d9d9"
 DEFLECTOR_COLOUR = "#404040"
@@ -109,6 +110,58 @@ def plot_trajectories(
     xt.set_ylabel("centroid x [mm]")
     xt.set_title("progress along the belt (dashed: deflector roots, dotted: belt end, "
                  "x: exit)", fontsize=9)  # fmt: skip
+    return _finish(fig, path, title, dpi=100)
+
+
+def centroid_speed(t: np.ndarray, centroid: np.ndarray) -> np.ndarray:
+    """Speed of a centroid [m/s] (k,) from its positions [m] (k, 3) at times ``t`` [s] (k,),
+    by central differences (one-sided at the ends)."""
+    t = np.asarray(t, float)
+    if t.size < 2:
+        return np.zeros(t.size)
+    return np.linalg.norm(np.gradient(np.asarray(centroid, float), t, axis=0), axis=1)
+
+
+def plot_conveyor_motion(
+    path: str | Path, consignments: Mapping[str, Mapping], belt_speed: float, *, title: str = ""
+) -> Path:
+    """Speed, yaw and deflector force of each consignment against time (three panels).
+
+    ``consignments``: name -> its ``responses.json`` entry
+    (:meth:`~flexparcel.scenarios.conveyor_responses.ConsignmentResponse.to_dict`:
+    ``trajectory`` with ``t_s``, ``x_m``, ``y_m``, ``z_m``; ``yaw_deg`` and
+    ``contact_force_N``, each a list or null); ``belt_speed`` [m/s] is drawn as a line. A
+    consignment without yaw or force is left out of that panel, and the panel says so."""
+    plt = _pyplot()
+    fig, (vx, yx, fx) = plt.subplots(3, 1, figsize=(9, 8.5), sharex=True)
+    missing: dict[str, list[str]] = {"yaw": [], "force": []}
+    for name, c in consignments.items():
+        tr = c["trajectory"]
+        t = np.asarray(tr["t_s"], float)
+        xyz = np.column_stack([tr["x_m"], tr["y_m"], tr["z_m"]])
+        (line,) = vx.plot(t, centroid_speed(t, xyz), label=name)
+        colour = line.get_color()
+        if c.get("yaw_deg") is None:
+            missing["yaw"].append(name)
+        else:
+            yx.plot(t, c["yaw_deg"], color=colour, label=name)
+        if c.get("contact_force_N") is None:
+            missing["force"].append(name)
+        else:
+            fx.plot(t, c["contact_force_N"], color=colour, label=name)
+    vx.axhline(belt_speed, color="k", linestyle=":", linewidth=0.8, label="belt")
+    vx.set_ylabel("centroid speed [m/s]")
+    yx.set_ylabel("yaw [deg]")
+    fx.set_ylabel("deflector normal force [N]")
+    fx.set_xlabel("t [s]")
+    notes = {"yaw": "no yaw (no clear long axis)", "force": "no force recorded"}
+    for ax, key in ((yx, "yaw"), (fx, "force")):
+        if missing[key]:
+            ax.set_title(f"{notes[key]}: {', '.join(missing[key])}", fontsize=8)
+    for ax in (vx, yx, fx):
+        ax.grid(True, alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8, loc="best")
     return _finish(fig, path, title, dpi=100)
 
 

@@ -6,12 +6,15 @@ do not import the plotting layer, the caller passes these in.
   and the end) and ``response.png`` (the free end's position relative to the clamp edge with
   both swings marked; the centre-of-mass height with the touch and the rebound peak marked);
 * conveyor: ``snapshots.png`` (top views at 0, 1 and 2 s, or at 0, t_end / 2 and t_end for
-  shorter runs), ``trajectories.png`` and ``animation.gif``;
+  shorter runs), ``trajectories.png``, ``motion.png`` (speed, yaw and deflector force
+  against time) and ``animation.gif``;
 * every scenario (:func:`pictures_for`, unless ``viewer=False``): ``view.html``, the 3-D
   viewer in the browser (:mod:`flexparcel.viz.viewer`), from the ``results.npz`` the
-  scenario's ``write`` saved just before. The command line (``run``, ``demo``, ``bench``)
-  passes these writers, so every run through it leaves a ``view.html``; a scenario run from
-  Python gets one by passing ``pictures=pictures_for(name)`` to its ``write`` (or later with
+  scenario's ``write`` saved just before; then (unless ``report=False``) ``report.html``,
+  the HTML report (:mod:`flexparcel.viz.report`) that embeds the pictures and the viewer.
+  The command line (``run``, ``demo``, ``bench``) passes these writers, so every run
+  through it leaves a ``view.html`` and a ``report.html``; a scenario run from Python gets
+  them by passing ``pictures=pictures_for(name)`` to its ``write`` (or later with
   ``flexparcel view DIR``).
 """
 
@@ -29,10 +32,12 @@ __all__ = [
     "PICTURES",
     "pictures_for",
     "with_viewer",
+    "with_report",
     "swing_pictures",
     "drop_pictures",
     "conveyor_pictures",
     "snapshot_times",
+    "paper_lines",
 ]
 
 
@@ -67,10 +72,12 @@ def swing_pictures(result: ScenarioResult, out: Path) -> dict[str, Path]:
     clamped = result.settings.get("clamped_length_m", 0.020)
     x_rel, first, second = swing_curve(run, clamped)
     resp = get_scenario("swing", clamped_length=clamped).responses(result)
-    shown = ", ".join(f"{k.split('_')[0]} {r.format(1)}" for k, r in resp.items())
+    shown = ", ".join(f"{k.split('_')[0]} {_short(r)}" for k, r in resp.items())
     title = f"Swing test, {c.build.spec.id}: free end ({shown})"
+    refs = [(label, -mm * 1e-3 if key == "first_swing_mm" else mm * 1e-3, kind)
+            for label, key, mm, kind in paper_lines("swing", c.build.spec.id)]  # fmt: skip
     curve = plot_swing_curve(Path(out) / "response.png", res.time, x_rel, first=first,
-                             second=second, title=title)  # fmt: skip
+                             second=second, title=title, references=refs)  # fmt: skip
     events = {m[0]: caption for m, caption in ((first, "first swing"), (second, "second swing"))
               if m is not None}  # fmt: skip
     clamp_x = float(res.positions[0, c.packaging, 0].min() + clamped)
@@ -89,11 +96,14 @@ def drop_pictures(result: ScenarioResult, out: Path) -> dict[str, Path]:
     res = run.result
     zc, touch, kmin, peak = drop_curve(run)
     r = get_scenario(result.scenario).responses(result)["rebound_mm"]
+    cid = run.consignment.build.spec.id
     curve = plot_drop_curve(
         Path(out) / "response.png", res.time, zc, touch=touch, peak=peak,
-        rebound=(r.value or 0.0) * 1e-3,
-        title=f"{result.scenario.replace('-', ' ').capitalize()} test, "
-        f"{run.consignment.build.spec.id}: centre of mass (rebound {r.format(1)})",
+        rebound=None if r.value is None else r.value * 1e-3,
+        title=f"{result.scenario.replace('-', ' ').capitalize()} test, {cid}: centre of "
+        f"mass (rebound {_short(r)})",
+        references=[(label, mm * 1e-3, kind)
+                    for label, _, mm, kind in paper_lines(result.scenario, cid)],
     )  # fmt: skip
     events: dict[int, str] = {}
     if touch is not None:
@@ -105,6 +115,27 @@ def drop_pictures(result: ScenarioResult, out: Path) -> dict[str, Path]:
     picture = _test_frames(result, Path(out) / "frames.png", events, plate_z=0.0,
                            clamp_x=None, shared_axes=False)  # fmt: skip
     return {"picture": picture, "curve": curve}
+
+
+def _short(response) -> str:
+    """``"58.5 mm"`` or ``"not reached"`` (a title has no room for the why)."""
+    return "not reached" if response.value is None else f"{response.format(1)}"
+
+
+def paper_lines(test: str, consignment: str) -> list[tuple[str, str, float, str]]:
+    """Reference lines of a response curve: ``(label, response key, value [mm], kind)`` of
+    paper Table 7 (kind ``"table7"``) and the real-world test (``"real"``) for ``test``;
+    none unless ``consignment`` is KP/BW, the one they were measured on."""
+    from flexparcel.scenarios.paper_reference import REFERENCE_CONSIGNMENT, TEST_REFERENCES
+
+    if consignment != REFERENCE_CONSIGNMENT:
+        return []
+    out = []
+    for ref in TEST_REFERENCES:
+        if ref.test == test:
+            out.append(("paper Table 7 (RecurDyn)", ref.response, ref.table7, "table7"))
+            out.append(("real-world test", ref.response, ref.real, "real"))
+    return out
 
 
 def snapshot_times(t_end: float) -> list[float]:
@@ -147,8 +178,14 @@ def _consignment_cells(run) -> list:
 def conveyor_pictures(
     result: ScenarioResult, out: Path, *, animation_frames: int = 60
 ) -> dict[str, Path]:
-    """``snapshots.png``, ``trajectories.png`` and ``animation.gif`` of a conveyor run."""
-    from flexparcel.viz.conveyor import animate_conveyor, plot_conveyor_snapshots, plot_trajectories
+    """``snapshots.png``, ``trajectories.png``, ``motion.png`` and ``animation.gif`` of a
+    conveyor run."""
+    from flexparcel.viz.conveyor import (
+        animate_conveyor,
+        plot_conveyor_motion,
+        plot_conveyor_snapshots,
+        plot_trajectories,
+    )
 
     run = result.record
     res, out = run.result, Path(out)
@@ -167,6 +204,10 @@ def conveyor_pictures(
                                              title=f"Conveyor, top view ({label})"),
         "trajectories": plot_trajectories(out / "trajectories.png", run.responses, scene,
                                           title=f"Trajectories ({label})"),
+        "motion": plot_conveyor_motion(out / "motion.png",
+                                       {k: r.to_dict() for k, r in run.responses.items()},
+                                       scene.belt_speed,
+                                       title=f"Speed, yaw and deflector force ({label})"),
         "animation": animate_conveyor(out / "animation.gif", res.time, res.positions, cells,
                                       scene, boxes, max_frames=animation_frames,
                                       title=f"Conveyor ({label})"),
@@ -198,13 +239,31 @@ def with_viewer(
     return write
 
 
+def with_report(
+    pictures: Callable[[ScenarioResult, Path], Mapping[str, Path]] | None,
+) -> Callable[[ScenarioResult, Path], Mapping[str, Path]]:
+    """``pictures`` (or none) followed by the HTML report ``report.html``
+    (:func:`flexparcel.viz.report.report_writer`), which embeds what they drew; returns
+    name -> path of all."""
+
+    def write(result: ScenarioResult, out: Path) -> dict[str, Path]:
+        from flexparcel.viz.report import report_writer
+
+        files = dict(pictures(result, out)) if pictures is not None else {}
+        files.update(report_writer(result, Path(out)))
+        return files
+
+    return write
+
+
 def pictures_for(
-    name: str, *, viewer: bool = True
+    name: str, *, viewer: bool = True, report: bool = True
 ) -> Callable[[ScenarioResult, Path], Mapping[str, Path]] | None:
-    """The picture writer of scenario ``name`` with the viewer page ``view.html`` (any
-    scenario, built-in or not); with ``viewer=False`` the pictures alone, or None for a
-    scenario without pictures."""
+    """The picture writer of scenario ``name`` with the viewer page ``view.html`` and the
+    report ``report.html`` (any scenario, built-in or not); ``viewer=False`` and
+    ``report=False`` leave those out (with both, the pictures alone, or None for a scenario
+    without pictures)."""
     pictures = PICTURES.get(name)
-    if not viewer:
-        return pictures
-    return with_viewer(pictures)
+    if viewer:
+        pictures = with_viewer(pictures)
+    return with_report(pictures) if report else pictures
