@@ -50,8 +50,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "demo",
         help="KP/BW: assemble, swing and drop tests, report against the paper",
         description="Assemble the paper's KP/BW consignment, run the swing, vertical and "
-        "horizontal drop tests with the paper's Table 6 parameters and write DIR/report.md "
-        "(pictures, responses next to the paper's Table 7, wall times next to RecurDyn's).",
+        "horizontal drop tests with the paper's Table 6 parameters and write DIR/report.html "
+        "(pictures, 3-D viewers, responses next to the paper's Table 7 and the real-world "
+        "tests, wall times next to RecurDyn's; the same numbers in DIR/report.md). The last "
+        "line printed is the report's path.",
     )
     p.add_argument("--out", type=Path, default=Path("out/demo"), help="output directory")
     p.add_argument(
