@@ -259,3 +259,24 @@ def test_view_command_writes_the_report_again(drop_report, tmp_path, capsys):
     assert main(["view", str(folder)]) == 0
     assert f"report: {folder / 'report.html'}" in capsys.readouterr().out
     assert '<iframe src="view.html"' in (folder / "report.html").read_text()
+
+
+def test_drop_curve_touches_where_the_response_does():
+    # standing on its edge, the consignment first touches with the edge's line contact
+    # (radius 2 r with KP/BW's glued strip), not the nodes' r: the curve's touch height, the
+    # line the rebound is measured from, must be the response's (drop_touch_radius)
+    from flexparcel.scenarios.drop import drop_curve
+
+    r = 1e-3
+    t = np.linspace(0.0, 0.1, 101)
+    z = 0.01 - 0.1 * t  # the lowest node, falling at 0.1 m/s through z = 2r and then r
+    pos = np.zeros((len(t), 2, 3))
+    pos[:, 0, 2], pos[:, 1, 2] = z, z + 0.02
+    c = SimpleNamespace(node_ids=np.array([0, 1]), packaging=np.array([0, 1]), contact_radius=r,
+                        build=SimpleNamespace(has_glued_strip=True))  # fmt: skip
+    model = SimpleNamespace(mass=np.ones((2, 6)))
+    for test, radius in (("drop-vertical", 2 * r), ("drop-horizontal", r)):
+        res = SimpleNamespace(time=t, positions=pos)
+        run = SimpleNamespace(test=test, result=res, consignment=c, model=model)
+        _, touch, _, _ = drop_curve(run)
+        assert touch[0] == pytest.approx((0.01 - radius) / 0.1, abs=1e-12), test

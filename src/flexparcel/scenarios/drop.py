@@ -89,17 +89,23 @@ def horizontal_drop(**options: Any) -> DropScenario:
     return DropScenario("horizontal", **options)
 
 
-def drop_curve(run: TestRun) -> tuple[np.ndarray, tuple[float, float] | None, int | None,
-                                      int | None]:  # fmt: skip
+def drop_curve(run: TestRun, touch_radius: float | None = None
+               ) -> tuple[np.ndarray, tuple[float, float] | None, int | None,
+                          int | None]:  # fmt: skip
     """The drop's centre-of-mass height [m] (k,), the first contact ``(time [s], centre
     height [m])``, the frame of deepest compression and the frame of the rebound peak (None
     where there is none), as in
-    :func:`~flexparcel.scenarios.consignment_tests.rebound_height`."""
+    :func:`~flexparcel.scenarios.consignment_tests.rebound_height`. ``touch_radius`` [m]:
+    the contact radius of the first touch, by default that of the run's orientation
+    (:func:`~flexparcel.scenarios.consignment_tests.drop_touch_radius`: standing on its edge,
+    the edge's line contact), so that the curve's touch is the response's."""
     res, c = run.result, run.consignment
+    if touch_radius is None:
+        touch_radius = drop_touch_radius(c, run.test.removeprefix("drop-"))
     ids = c.node_ids
     m = run.model.mass[ids, 0]
     zc = res.positions[:, ids, 2] @ m / m.sum()
-    low = res.positions[:, c.packaging, 2].min(axis=1) - c.contact_radius
+    low = res.positions[:, c.packaging, 2].min(axis=1) - touch_radius
     touch = np.flatnonzero(low <= 0.0)
     if touch.size == 0:
         return zc, None, None, None

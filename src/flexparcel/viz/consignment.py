@@ -218,7 +218,7 @@ def plot_frames(
     return _finish(fig, path, title)
 
 
-_REFERENCE_STYLE = {"table7": ("0.35", "--"), "real": ("k", ":")}
+_REFERENCE_STYLE = {"table7": ("tab:purple", "--"), "real": ("k", ":")}
 """Colour and line style of the reference lines: paper Table 7 (RecurDyn), real-world test."""
 
 

@@ -177,8 +177,8 @@ def test_section(folder: Path, s: dict, link: str = "") -> str:
     (``link``: the folder relative to the page, with a trailing slash)."""
     return "".join([
         "<h3>Response curve</h3>",
-        "<p>With the paper's Table 7 (dashed) and the real-world test (dotted) where the "
-        "consignment is KP/BW.</p>",
+        "<p>With the paper's Table 7 (purple, dashed) and the real-world test (black, dotted) "
+        "where the consignment is KP/BW.</p>",
         picture(folder / "response.png", "response curve"),
         "<h3>Frames</h3>", picture(folder / "frames.png", "frames"),
         "<h3>3-D viewer</h3>", viewer_frame(folder, f"{link}view.html"),
