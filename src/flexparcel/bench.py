@@ -17,6 +17,8 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from flexparcel.integrate.dynamic import WALL_PHASES
+
 __all__ = [
     "CASES",
     "DEFAULT_CASES",
@@ -26,6 +28,23 @@ __all__ = [
     "conveyor_scaling",
     "plot_scaling",
 ]
+
+
+def _solver_name() -> str:
+    """The linear solver backend the default options pick on this installation."""
+    from flexparcel.integrate.linear import make_linear_solver
+
+    return make_linear_solver("auto").name
+
+
+def _phases(stats: dict) -> dict:
+    """Wall time [s] per phase of the Newton iterations (WALL_PHASES), and the rest of the
+    run ("other": predictor, step control, recording) as measured against its total."""
+    w = stats["wall_s"]
+    phases = {k: float(w.get(k, 0.0)) for k in WALL_PHASES}
+    if "total" in w:
+        phases["other"] = float(w["total"]) - sum(phases.values())
+    return phases
 
 
 def _sheet_swing(quick: bool = False, progress=None) -> dict:
@@ -44,6 +63,8 @@ def _sheet_swing(quick: bool = False, progress=None) -> dict:
     recurdyn_s = 384.0 * case.t_end / 1.4
     return {
         "case": "sheet-swing",
+        "element_size_mm": case.element_size * 1e3,
+        "linear_solver": _solver_name(),
         "description": "275x200 mm sheet, 10 mm quads, E=926 MPa, nu=0.1, beta=1.71e-3 s, "
         "t=0.3 mm, 40 g, 20 mm clamped, released horizontal under gravity",
         "simulated_s": case.t_end,
@@ -56,7 +77,7 @@ def _sheet_swing(quick: bool = False, progress=None) -> dict:
         "newton_iterations": st["newton_iterations"],
         "tangent_assemblies": st["tangent_assemblies"],
         "factorizations": st["factorizations"],
-        "phase_wall_s": {k: v for k, v in st["wall_s"].items() if k != "total"},
+        "phase_wall_s": _phases(st),
         "simulated_s_per_wall_s": case.t_end / wall,
         "recurdyn_wall_s": recurdyn_s,
         "speedup_vs_recurdyn": recurdyn_s / wall,
@@ -83,6 +104,7 @@ def _envelope_drop(quick: bool = False, progress=None) -> dict:
     phases = {}
     state = None
     total = {"steps": 0, "rejected_steps": 0, "newton_iterations": 0, "factorizations": 0}
+    phase_wall = dict.fromkeys(WALL_PHASES, 0.0)
     wall = 0.0
     for name, t0, t1 in zip(names, bounds[:-1], bounds[1:], strict=True):
         if t1 <= t0:
@@ -99,12 +121,17 @@ def _envelope_drop(quick: bool = False, progress=None) -> dict:
             "steps": res.stats["steps"],
             "newton_iterations": res.stats["newton_iterations"],
             "rejected_steps": res.stats["rejected_steps"],
+            "phase_wall_s": _phases(res.stats),
         }
         for k in total:
             total[k] += res.stats[k]
+        for k in phase_wall:
+            phase_wall[k] += phases[name]["phase_wall_s"][k]
     recurdyn_s = 76.0 * case.t_end / 0.3
     return {
         "case": "envelope-drop",
+        "element_size_mm": case.element_size * 1e3,
+        "linear_solver": _solver_name(),
         "description": "rigid 100 g box (165x125x20 mm) in a 275x200 mm two-layer shell "
         "envelope, 10 mm quads, dropped flat from 200 mm onto a rigid plate",
         "friction_model": _FRICTION_MODEL if case.stick_model else "regularised (paper eq. 8)",
@@ -115,6 +142,7 @@ def _envelope_drop(quick: bool = False, progress=None) -> dict:
         "dof_count": model.dof_count,
         **total,
         "phases": phases,
+        "phase_wall_s": {**phase_wall, "other": wall - sum(phase_wall.values())},
         "final_box_height_m": float(state.positions[box, 2]),
         "simulated_s_per_wall_s": case.t_end / wall,
         "recurdyn_wall_s": recurdyn_s,
@@ -226,7 +254,7 @@ def _conveyor(
         "newton_iterations": st["newton_iterations"],
         "newton_iterations_rejected": st["newton_iterations_rejected"],
         "factorizations": st.get("factorizations"),
-        "phase_wall_s": {k: v for k, v in st["wall_s"].items() if k != "total"},
+        "phase_wall_s": _phases(st),
         # grouped runs time each phase inside the worker processes and add them up, so with
         # several workers busy at once the phases together exceed wall_s
         "phase_wall_basis": (

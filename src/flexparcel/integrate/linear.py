@@ -58,6 +58,13 @@ class LinearSolver:
         """Apply the held factorisation as a preconditioner (for Krylov reuse)."""
         return self._lu.solve(b)
 
+    def history(self) -> dict[str, np.ndarray]:
+        """What later factorisations depend on besides the matrices (for checkpoints)."""
+        return {}
+
+    def restore_history(self, history: dict[str, np.ndarray]) -> None:
+        """Inverse of :meth:`history`."""
+
 
 def _superlu(a: sp.spmatrix):
     try:
@@ -394,6 +401,27 @@ class CholmodSolver(LinearSolver):
         except ArithmeticError:  # not positive definite: LU of the whole matrix
             self._symbolic = None
             self._fall_back()
+
+    def history(self) -> dict[str, np.ndarray]:
+        """The held sparsity pattern: its fill-reducing ordering sets the round-off of every
+        later solve, so a resumed run needs it to repeat the uninterrupted one bit for bit."""
+        p = self._pattern
+        if p is None:
+            return {}
+        return {"pattern_indptr": p.indptr.copy(), "pattern_indices": p.indices.copy()}
+
+    def restore_history(self, history: dict[str, np.ndarray]) -> None:
+        if "pattern_indptr" not in history:
+            self._pattern, self._symbolic = None, None
+            return
+        ptr = np.asarray(history["pattern_indptr"], dtype=np.int64)
+        idx = np.asarray(history["pattern_indices"], dtype=np.int64)
+        n = ptr.size - 1
+        if n < 0 or ptr[-1] != idx.size or (idx.size and (idx.min() < 0 or idx.max() >= n)):
+            raise ValueError("linear solver history: the held sparsity pattern is malformed")
+        held = sp.csr_matrix((np.ones(idx.size), idx, ptr), shape=(n, n))
+        self._pattern = _SymmetricLower(held, self._cvxopt)
+        self._symbolic = None
 
     def _new_pattern(self, a: sp.csr_matrix) -> None:
         """Hold the union of the current pattern and a's (a alone if that grew past

@@ -57,6 +57,7 @@ from flexparcel.contact.broadphase import point_triangle_candidates
 from flexparcel.contact.geometry import point_triangle
 from flexparcel.integrate.dynamic import (
     CONTACT_HISTORY,
+    SOLVER_HISTORY,
     GeneralizedAlpha,
     IntegratorOptions,
     Stats,
@@ -221,6 +222,7 @@ class _Group:
             hist["scalars"] = exports[0]["scalars"]
             hist["stat_counts"] = exports[0]["stat_counts"]
             hist["stat_wall"] = exports[0]["stat_wall"]
+            hist.update({k: v for k, v in exports[0].items() if k.startswith(f"{SOLVER_HISTORY}.")})
         else:  # merged or split: a fresh step controller state and statistics
             hist["scalars"] = self._merged_scalars(exports)
         self.integ.restore_history(hist)
