@@ -92,3 +92,16 @@ def test_readme_command_table_names_every_command_of_help():
     assert not missing, f"commands of flexparcel --help missing in the README table: {missing}"
     unknown = [c for c in table if c not in helped]
     assert not unknown, f"README table names commands flexparcel --help does not: {unknown}"
+
+
+def test_readme_explains_every_extra():
+    # each extra of pyproject.toml has its row in the README's table of extras: what it
+    # pulls in and what it is needed for
+    import tomllib
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"
+    ]
+    rows = re.findall(r"^\| `([a-z]+)` \| [^|]+ \| [^|]+ \|$", README.read_text(), re.MULTILINE)
+    missing = sorted(set(extras) - set(rows))
+    assert not missing, f"README.md's table of extras lacks: {missing}"
