@@ -25,7 +25,8 @@ steps) and each animated field to 8 bits over its range, base64-encoded: about
 (displacement, speed, and the contact force where there is one) and F_c cell fields (the
 strain), some 13 bytes per vertex and frame. Measured (plotly 7.1): the small example
 consignment (50 packaging vertices and its 216-vertex rounded box), drop test, 11 frames:
-4.9 MB, +3.4 kB a frame; the four paper consignments at 25 mm on the conveyor (1,893
+4.9 MB, +3.4 kB a frame; KP/BW at 25 mm (``flexparcel demo --quick``): swing, 51 frames,
+5.1 MB; each drop, 151 frames, 5.6 MB; the four paper consignments at 25 mm on the conveyor (1,893
 vertices, 3,368 triangles; the built scene carried along the belt, as the size does not
 depend on the motion), 21 frames: 5.5 MB, 201 frames (2 s at 10 ms): 9.9 MB, +24.7 kB a
 frame. Size grows linearly with frames times vertices; the same scene at 10 mm (about six
