@@ -271,11 +271,20 @@ def _tri_kinematics(x, rot, xloc, r0ref):
                 xl[a, i] += r0[k, i] * (x[a, k] - xc[k])
     d = np.zeros(18, dt)
     tinv = np.zeros((3, 3, 3), dt)
+    rr = np.empty((3, 3), dt)  # r0^T R_a, then r0^T R_a r0ref (loops: no temporaries)
+    rb = np.empty((3, 3), dt)
     for a in range(3):
         d[6 * a] = xl[a, 0] - xloc[a, 0]
         d[6 * a + 1] = xl[a, 1] - xloc[a, 1]
         d[6 * a + 2] = xl[a, 2]
-        rb = matmul(matmul(r0.T.copy(), rot[a]), r0ref)
+        for i in range(3):
+            for j in range(3):
+                rr[i, j] = (
+                    r0[0, i] * rot[a, 0, j] + r0[1, i] * rot[a, 1, j] + r0[2, i] * rot[a, 2, j]
+                )
+        for i in range(3):
+            for j in range(3):
+                rb[i, j] = rr[i, 0] * r0ref[0, j] + rr[i, 1] * r0ref[1, j] + rr[i, 2] * r0ref[2, j]
         th = rotation_log(rb)
         d[6 * a + 3 : 6 * a + 6] = th
         tinv[a] = tangent_inv(th)
@@ -298,14 +307,18 @@ def _tri_kinematics(x, rot, xloc, r0ref):
     g[2, 4] = 1.0 / l12
     bl = np.zeros((18, 18), dt)
     for a in range(3):
-        wx = skew(xl[a])
-        wg = matmul(wx, g)  # (3, 9)
-        tg = matmul(tinv[a].copy(), g)
+        xa, ya, za = xl[a, 0], xl[a, 1], xl[a, 2]
         for b in range(3):
+            for j in range(3):
+                c = 3 * b + j
+                # W(x_a) G and T^-1 G, column c, written into B directly
+                bl[6 * a, 6 * b + j] = -za * g[1, c] + ya * g[2, c]
+                bl[6 * a + 1, 6 * b + j] = za * g[0, c] - xa * g[2, c]
+                bl[6 * a + 2, 6 * b + j] = -ya * g[0, c] + xa * g[1, c]
+                for i in range(3):
+                    tgi = tinv[a, i, 0] * g[0, c] + tinv[a, i, 1] * g[1, c]
+                    bl[6 * a + 3 + i, 6 * b + j] = -(tgi + tinv[a, i, 2] * g[2, c])
             for i in range(3):
-                for j in range(3):
-                    bl[6 * a + i, 6 * b + j] = wg[i, 3 * b + j]
-                    bl[6 * a + 3 + i, 6 * b + j] = -tg[i, 3 * b + j]
                 bl[6 * a + i, 6 * b + i] -= 1.0 / 3.0
         for i in range(3):
             bl[6 * a + i, 6 * a + i] += 1.0
