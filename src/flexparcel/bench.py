@@ -337,7 +337,7 @@ def conveyor_scaling(
 def plot_scaling(table: dict, path: str | Path) -> Path:
     """Wall time and wall time per Newton iteration against consignment count (log-log),
     with the linear reference."""
-    from flexparcel.viz.consignment import _pyplot
+    from flexparcel.viz.consignment import _pyplot, save_figure
 
     plt = _pyplot()
     rows = table["rows"]
@@ -361,9 +361,7 @@ def plot_scaling(table: dict, path: str | Path) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=100)
 
 
 def _conveyor_scaling_case(
