@@ -93,10 +93,12 @@ def test_block_backend_gives_the_same_motion(backend):
                      options=fp.IntegratorOptions(linear_solver="superlu"))  # fmt: skip
     opt = fp.IntegratorOptions(linear_solver=backend)
     r1 = fp.simulate(model, 0.03, dt_out=0.01, state=s0, options=opt)
-    assert r1.stats["steps"] == r0.stats["steps"]
-    # cholmod solves the friction-coupled (nonsymmetric) matrices by GMRES to a relative
-    # residual of KRYLOV_RTOL (1e-8) instead of to round-off: measured 2.7e-9 m
-    tol = 1e-8 if backend == "cholmod" else 1e-9
+    # the backends' solutions differ by round-off, and a Newton test that an iterate passes
+    # by a hair flips with it: from there the runs differ by up to the Newton tolerance
+    # (newton_tol * tol_displacement = 1e-6 m per step; measured 6.2e-6 m over the run for
+    # superlu-blocks, 26 steps against 29; cholmod 1.8e-14 m, the same 29 steps)
+    assert abs(r1.stats["steps"] - r0.stats["steps"]) <= 0.2 * r0.stats["steps"]
+    tol = 2e-5
     assert np.abs(r1.positions - r0.positions).max() < tol
 
 
@@ -240,3 +242,27 @@ def test_cholmod_falls_back_to_superlu_where_the_matrix_is_not_positive_definite
     s.factor(a2)
     assert np.linalg.norm(a2 @ s.solve(b) - b) <= 1e-13 * np.linalg.norm(b)
     assert s.fallbacks == 1
+
+
+def test_cholmod_history_restores_the_held_pattern_and_refuses_a_malformed_one():
+    # the held pattern sets the ordering, hence the round-off of every later solve: a solver
+    # restored from another's history solves bit for bit like it
+    s = make_linear_solver("cholmod")
+    s.factor(_shell_like(couple=[(3, 40)]))
+    s.factor(_shell_like())  # within the held union: no new analysis
+    hist = s.history()
+    assert set(hist) == {"pattern_indptr", "pattern_indices"}
+    t = make_linear_solver("cholmod")
+    t.restore_history(hist)
+    a, b = _shell_like(seed=7), np.arange(60.0)
+    s.factor(a)
+    t.factor(a)
+    np.testing.assert_array_equal(s.solve(b), t.solve(b))
+    assert t.symbolic_count == 1  # analysed once, on the restored pattern
+    bad = {
+        "pattern_indptr": hist["pattern_indptr"],
+        "pattern_indices": hist["pattern_indices"] + 99,
+    }
+    with pytest.raises(ValueError, match="held sparsity pattern is malformed"):
+        t.restore_history(bad)
+    assert make_linear_solver("superlu").history() == {}
