@@ -266,3 +266,26 @@ def test_swing_that_never_swings_past_reports_not_reached():
     r = swing.responses(ScenarioResult("swing", {}, run.result, 0.0, run))
     assert not r["first_swing_mm"].reached and not r["second_swing_mm"].reached
     assert r["first_swing_mm"].unit == "mm" and "did not swing past" in r["first_swing_mm"].note
+
+
+def test_consignment_tests_warn_on_shells_coarser_than_15_mm(capsys):
+    import warnings
+
+    from flexparcel.cli import _plain_warnings
+    from flexparcel.model.materials import CoarseMeshWarning
+    from flexparcel.scenarios.consignment_scenario import warn_if_coarse
+
+    with pytest.warns(CoarseMeshWarning, match="25 mm shells are coarser than the paper's 10"):
+        warn_if_coarse("swing", 25.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warn_if_coarse("swing", 10.0)  # the paper's mesh: silent
+        warn_if_coarse("drop-vertical", 15.0)
+    # the CLI shows a warning as one plain line
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        _plain_warnings("run")
+        warn_if_coarse("swing", 25.0)
+    err = capsys.readouterr().err
+    assert err.startswith("flexparcel run: warning: swing: 25 mm shells are coarser")
+    assert err.count("\n") == 1

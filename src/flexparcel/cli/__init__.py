@@ -98,6 +98,17 @@ def _out_folder(args: argparse.Namespace, argv: list[str] | None):
     return OutputFolder(Path(out), args.command, argv)
 
 
+def _plain_warnings(command: str) -> None:
+    """Warnings as one line each, ``flexparcel CMD: warning: message``, not Python's
+    file-and-source-line form."""
+    import warnings
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"flexparcel {command}: warning: {message}", file=file or sys.stderr)
+
+    warnings.showwarning = show
+
+
 def main(argv: list[str] | None = None) -> int:
     from flexparcel.io.results import FileFormatError
 
@@ -107,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     name = args.command
+    _plain_warnings(name)
     folder = None
     error = None
     try:

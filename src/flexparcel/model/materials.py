@@ -12,6 +12,7 @@ __all__ = [
     "validate_elastic",
     "UnitWarning",
     "PlausibilityWarning",
+    "CoarseMeshWarning",
     "PLAUSIBLE_MIN_YOUNGS_MODULUS",
     "si_text",
 ]
@@ -33,6 +34,11 @@ class PlausibilityWarning(UserWarning):
     """A value that is valid but almost certainly not meant (e.g. a dynamic friction
     coefficient above the static one); the message says why. Silence it with
     ``warnings.simplefilter("ignore", PlausibilityWarning)`` where it is meant."""
+
+
+class CoarseMeshWarning(UserWarning):
+    """A mesh coarser than the resolution a response is known to need; the message names the
+    measured consequence. Coarse meshes stay usable as a low-fidelity level."""
 
 
 def si_text(v: float) -> str:
