@@ -77,6 +77,7 @@ def _sheet_swing(quick: bool = False, progress=None) -> dict:
         "newton_iterations": st["newton_iterations"],
         "tangent_assemblies": st["tangent_assemblies"],
         "factorizations": st["factorizations"],
+        "symbolic_analyses": st["symbolic_analyses"],
         "phase_wall_s": _phases(st),
         "simulated_s_per_wall_s": case.t_end / wall,
         "recurdyn_wall_s": recurdyn_s,
@@ -103,7 +104,8 @@ def _envelope_drop(quick: bool = False, progress=None) -> dict:
     names = ["free_flight", "impact", "settling"]
     phases = {}
     state = None
-    total = {"steps": 0, "rejected_steps": 0, "newton_iterations": 0, "factorizations": 0}
+    total = {"steps": 0, "rejected_steps": 0, "newton_iterations": 0, "factorizations": 0,
+             "symbolic_analyses": 0}  # fmt: skip
     phase_wall = dict.fromkeys(WALL_PHASES, 0.0)
     wall = 0.0
     for name, t0, t1 in zip(names, bounds[:-1], bounds[1:], strict=True):

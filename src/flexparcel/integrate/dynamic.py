@@ -218,6 +218,9 @@ class Stats:
     newton_iterations_rejected: int = 0
     """Newton iterations spent in tries that Newton did not converge (part of the above)."""
     factorizations: int = 0
+    symbolic_analyses: int = 0
+    """Symbolic analyses (orderings) of the linear solver; SuperLU does one per
+    factorisation, CHOLMOD one per held sparsity pattern."""
     krylov_solves: int = 0
     krylov_iterations: int = 0
     tangent_assemblies: int = 0
@@ -261,6 +264,7 @@ class GeneralizedAlpha:
         self.gamma = 0.5 + self.af - self.am
         self.beta = 0.25 * (self.gamma + 0.5) ** 2
         self.solver = make_linear_solver(self.opt.linear_solver)
+        self._symbolic_seen = 0  # the solver's symbolic_count already in the statistics
         self.stats = Stats()
         self.h = self.opt.dt_initial
         self._factor_h = None  # step size the current matrix was built with
@@ -442,6 +446,8 @@ class GeneralizedAlpha:
             self._has_factor = False
             return False
         self.stats.wall_s["factor"] += _time.perf_counter() - t0
+        self.stats.symbolic_analyses += self.solver.symbolic_count - self._symbolic_seen
+        self._symbolic_seen = self.solver.symbolic_count
         self._factored_mat = mat
         self._has_factor = True
         self.stats.factorizations += 1
