@@ -289,3 +289,41 @@ def test_consignment_tests_warn_on_shells_coarser_than_15_mm(capsys):
     err = capsys.readouterr().err
     assert err.startswith("flexparcel run: warning: swing: 25 mm shells are coarser")
     assert err.count("\n") == 1
+
+
+def _drop_record(low_gaps_m, com_m):
+    """A drop record of two packaging nodes whose lower one is ``low_gaps_m`` above its
+    contact surface per frame, and a centre of mass at ``com_m``: (model, result, consignment)
+    for the response functions (contact radius 1 mm)."""
+    low = np.asarray(low_gaps_m) + 1e-3
+    pos = np.zeros((low.size, 2, 3))
+    pos[:, 0, 2] = low
+    pos[:, 1, 2] = 2.0 * np.asarray(com_m) - low  # equal masses: the centre is the mean
+    model = SimpleNamespace(mass=np.ones((2, 6)))
+    res = SimpleNamespace(positions=pos)
+    c = SimpleNamespace(packaging=np.array([0, 1]), node_ids=np.array([0, 1]),
+                        contact_radius=1e-3)  # fmt: skip
+    return model, res, c
+
+
+def test_camera_clearance_is_the_gap_under_the_lowest_point_not_the_centre_rise():
+    from flexparcel.scenarios.consignment_tests import camera_clearance, rebound_outcome
+
+    # falls, touches, its lowest point leaves the plate by 3 mm and lands again, while the
+    # centre of mass keeps sinking (a consignment tipping over): the camera sees 3 mm
+    gaps = [0.02, 0.0, 0.001, 0.003, 0.002, 0.0, 0.0]
+    com = [0.05, 0.03, 0.029, 0.028, 0.027, 0.026, 0.025]
+    gap, why = camera_clearance(*_drop_record(gaps, com))
+    assert gap == pytest.approx(0.003) and why == ""
+    rise, _ = rebound_outcome(*_drop_record(gaps, com))
+    assert not rise  # the centre-of-mass rebound sees no bounce at all
+    # a box bouncing inside an envelope that stays on the plate: the centre rises, the gap
+    # under the lowest point stays 0
+    com_box = [0.05, 0.03, 0.032, 0.034, 0.032, 0.03, 0.03]
+    assert camera_clearance(*_drop_record([0.02] + [0.0] * 6, com_box))[0] == 0.0
+    assert rebound_outcome(*_drop_record([0.02] + [0.0] * 6, com_box))[0] == pytest.approx(0.004)
+    # not reached: no touch, or the gap still growing at the end of the record
+    assert camera_clearance(*_drop_record([0.03, 0.02, 0.01], [0.1] * 3)) == (
+        None, "the consignment did not touch the plate within the run")  # fmt: skip
+    gap, why = camera_clearance(*_drop_record([0.01, 0.0, 0.001, 0.002], [0.1] * 4))
+    assert gap is None and "still growing" in why

@@ -53,6 +53,7 @@ __all__ = [
     "swing_peaks",
     "swing_responses",
     "rebound_outcome",
+    "camera_clearance",
     "rebound_height",
     "consignment_options",
 ]
@@ -335,6 +336,28 @@ def rebound_outcome(
     the last frame (its peak lies beyond the record)."""
     value, missing = _bounce(model, res, c, touch_radius)
     return (None, missing) if missing else (value, "")
+
+
+def camera_clearance(
+    model: Model, res: SimulationResult, c: Consignment, touch_radius: float | None = None
+) -> tuple[float | None, str]:
+    """What a camera beside the plate sees (the paper's Fig. 28): the largest clearance [m]
+    between the plate and the consignment's lowest point (its lowest packaging node's
+    surface, ``touch_radius`` [m] below the node, default the contact radius) after the first
+    touch; or None and why where the record does not reach it (no touch, or the gap still
+    growing at the last frame). Unlike :func:`rebound_height` it does not follow the centre
+    of mass: a consignment that tips over while its lowest point leaves the plate by 3 mm
+    shows 3 mm here, and a box bouncing inside a resting envelope shows none."""
+    radius = c.contact_radius if touch_radius is None else touch_radius
+    gap = res.positions[:, c.packaging, 2].min(axis=1) - radius
+    touch = np.flatnonzero(gap <= 0.0)
+    if touch.size == 0:
+        return None, "the consignment did not touch the plate within the run"
+    after = np.maximum(gap[touch[0] :], 0.0)
+    peak = int(np.argmax(after))
+    if peak == after.size - 1 and after[-1] > 0.0:
+        return None, "the gap was still growing at the end of the run: its peak lies beyond it"
+    return float(after[peak]), ""
 
 
 def rebound_height(

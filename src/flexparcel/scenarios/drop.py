@@ -2,9 +2,12 @@
 ``drop_height`` (200 mm) above a rigid plate, standing on an edge (``drop-vertical``, with
 the edge's line contact) or lying flat (``drop-horizontal``), 0.3 s.
 
-Response [mm]: ``rebound_mm``, the rise of the centre of mass in the first bounce above its
-height at the first touch (:func:`~flexparcel.scenarios.consignment_tests.rebound_outcome`);
-not reached when the run ends before the touch or before the bounce's peak. Files: see
+Responses [mm]: ``rebound_mm``, the rise of the centre of mass in the first bounce above its
+height at the first touch (:func:`~flexparcel.scenarios.consignment_tests.rebound_outcome`),
+and ``clearance_mm``, the largest gap between the plate and the consignment's lowest point
+after the first touch, as a camera beside the plate sees it (the paper's Fig. 28;
+:func:`~flexparcel.scenarios.consignment_tests.camera_clearance`); either is not reached when
+the run ends before the touch or before its peak. Files: see
 :mod:`flexparcel.scenarios.consignment_scenario`.
 """
 
@@ -20,6 +23,7 @@ from flexparcel.scenarios.consignment_scenario import ConsignmentTest, mm_respon
 from flexparcel.scenarios.consignment_tests import (
     TestModel,
     TestRun,
+    camera_clearance,
     drop_model,
     drop_test,
     drop_touch_radius,
@@ -71,9 +75,15 @@ class DropScenario(ConsignmentTest):
         run: TestRun = result.record
         touch = drop_touch_radius(run.consignment, self.orientation)
         value, why = rebound_outcome(run.model, run.result, run.consignment, touch)
-        return {"rebound_mm": mm_response(
-            value, "rise of the centre of mass in the first bounce above its height at the "
-            "first touch", why)}  # fmt: skip
+        gap, gap_why = camera_clearance(run.model, run.result, run.consignment, touch)
+        return {
+            "rebound_mm": mm_response(
+                value, "rise of the centre of mass in the first bounce above its height at "
+                "the first touch", why),
+            "clearance_mm": mm_response(
+                gap, "largest gap between the plate and the consignment's lowest point after "
+                "the first touch (a camera's view, the paper's Fig. 28)", gap_why),
+        }  # fmt: skip
 
     def _summary_settings(self, result: ScenarioResult) -> dict:
         return {"drop_height_mm": self.drop_height * 1e3}
