@@ -458,8 +458,10 @@ def _kpbw_tests(
     *,
     element_size_mm: float | None = None,
     snapshot: str | Path | None = None,
+    snapshot_dir: str | Path | None = None,
 ) -> dict:
-    """Bench case ``kpbw-tests``: KP/BW assembled (or ``snapshot``), then its swing (1.4 s),
+    """Bench case ``kpbw-tests``: KP/BW assembled (or ``snapshot``, or ``KPBW.npz`` from
+    ``snapshot_dir`` when it was assembled at this element size), then its swing (1.4 s),
     vertical and horizontal drop (200 mm, 0.3 s) with the paper's Table 6 parameters; wall
     times next to RecurDyn's (384 / 125 / 76 s on 4 cores, scaled to the simulated time).
     ``quick``: 25 mm mesh, 0.1 s swing, 0.22 s drops (just past the impact)."""
@@ -473,7 +475,17 @@ def _kpbw_tests(
         element_size_mm = 25.0
     size = None if element_size_mm is None else element_size_mm * 1e-3
     t0 = time.perf_counter()
-    snap = load_snapshot(snapshot) if snapshot else assemble(resolve_consignment("KPBW", size))
+    if snapshot:
+        snap, source = load_snapshot(snapshot), str(snapshot)
+    elif snapshot_dir:
+        from flexparcel.cli.snapshots import snapshot_for
+
+        build = resolve_consignment("KPBW", size)
+        snap, source = snapshot_for("KPBW", build, Path(snapshot_dir), snapshot_dir=snapshot_dir,
+                                    element_size_given=size is not None, progress=False,
+                                    log=lambda _m: None)  # fmt: skip
+    else:
+        snap, source = assemble(resolve_consignment("KPBW", size)), "assembled"
     assembly_wall = time.perf_counter() - t0
     recurdyn = {"swing": (384.0, 1.4), "drop-vertical": (125.0, 0.3),
                 "drop-horizontal": (76.0, 0.3)}  # fmt: skip
@@ -497,6 +509,7 @@ def _kpbw_tests(
         "description": "KP/BW swing, vertical and horizontal drop, Table 6 parameters",
         "friction_model": _FRICTION_MODEL,
         "element_size_mm": snap.build.element_size * 1e3,
+        "snapshot": source,
         "assembly_wall_s": assembly_wall,
         "rows": rows,
         "simulated_s": sum(r["simulated_s"] for r in rows),

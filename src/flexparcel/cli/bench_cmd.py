@@ -70,8 +70,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=Path,
         default=None,
         metavar="DIR",
-        help="conveyor cases: snapshots NAME.npz or NAME/snapshot.npz (else "
-        "assembled and cached next to --out)",
+        help="conveyor and kpbw-tests cases: snapshots NAME.npz or NAME/snapshot.npz, "
+        "e.g. data/paper-snapshots-25mm (else assembled and cached next to --out)",
     )
     g.add_argument(
         "--workers",
@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
             "content_stiffness_n_per_mm": args.content_stiffness,
         },
         "consignment-assembly": {"element_size_mm": args.element_size},
-        "kpbw-tests": {"element_size_mm": args.element_size},
+        "kpbw-tests": {"element_size_mm": args.element_size, "snapshot_dir": args.snapshot_dir},
         "conveyor-scaling": {
             **common,
             "counts": counts,
