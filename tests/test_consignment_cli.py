@@ -363,3 +363,17 @@ def test_unsettled_assembly_writes_its_last_state_and_fails(assembled, tmp_path,
     assert (out / "unsettled.png").stat().st_size > 0 and not (out / "snapshot.npz").exists()
     back = load_snapshot(out / "unsettled.npz")
     assert np.array_equal(back.positions, snap.positions) and back.info["at_rest"] is False
+
+
+def test_demo_starts_from_a_named_snapshot_folder_only_when_it_fits(tmp_path):
+    from flexparcel.cli.demo_cmd import given_snapshot
+    from flexparcel.consignments.userfile import resolve_consignment
+
+    shipped = Path(__file__).resolve().parents[1] / "data" / "paper-snapshots-25mm"
+    snap, path = given_snapshot(resolve_consignment("KPBW", 0.025), shipped)
+    assert path.endswith("KPBW.npz") and snap.build.element_size == pytest.approx(0.025)
+    # assembled at 25 mm: a 10 mm demo must not start from it
+    with pytest.raises(ValueError):
+        given_snapshot(resolve_consignment("KPBW", 0.010), shipped)
+    with pytest.raises(FileNotFoundError, match="no snapshot of 'KPBW' in"):
+        given_snapshot(resolve_consignment("KPBW", 0.025), tmp_path)
