@@ -70,8 +70,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=Path,
         default=None,
         metavar="DIR",
-        help="conveyor and kpbw-tests cases: snapshots NAME.npz or NAME/snapshot.npz, "
-        "e.g. data/paper-snapshots-25mm (else assembled and cached next to --out)",
+        help="conveyor and kpbw-tests cases: snapshots NAME.npz or NAME/snapshot.npz "
+        "(else assembled and cached next to --out)",
     )
     g.add_argument(
         "--workers",
