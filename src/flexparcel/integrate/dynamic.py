@@ -307,6 +307,7 @@ class GeneralizedAlpha:
         # DOF number of each assembled (unknown or FDR slave) index, in that index order
         self._ext_dofs = np.empty(model.ext_count, dtype=np.int64)
         self._ext_dofs[model.free_index[mask]] = np.flatnonzero(mask)
+        self._ext_rotation = self._ext_dofs % 6 >= 3  # which assembled DOFs are rotations
         self._mfree = asm.free_vector(model, model.mass)
         # length that converts rotation corrections to displacements in the Newton test
         sizes = [g.characteristic_length() for g in model.element_groups]
@@ -357,17 +358,14 @@ class GeneralizedAlpha:
         return a1, qdd, v1
 
     def _nodal_residual(self, s1, qdd, v1, fint, fc, t1):
-        """M qdd + f_int - f_ext - f_contact per node (n, 6), and the force scale of the
-        residual test: the 2-norm over the free DOFs of |M qdd| + |f_int| + |f_ext| + |f_c|."""
+        """M qdd + f_int - f_ext - f_contact per node (n, 6)."""
         m = self.model
         inertia = m.mass * qdd
         if m.mass_damping:
             inertia += m.mass_damping * m.mass * v1
         if m.rigid_nodes.size:
             inertia += asm.rigid_inertial_moments(m, s1.rotations, qdd[:, 3:], v1[:, 3:])
-        fext = asm.external_forces(m, t1, s1.rotations)
-        size = np.abs(inertia) + np.abs(fint) + np.abs(fext) + np.abs(fc)
-        return inertia + fint - fext - fc, float(np.linalg.norm(asm.free_vector(m, size)))
+        return inertia + fint - asm.external_forces(m, t1, s1.rotations) - fc
 
     def _contact_context(self, t: float) -> ContactContext:
         m = self.model
@@ -568,7 +566,7 @@ class GeneralizedAlpha:
             else:
                 fint, _ = asm.internal_forces(m, s1.positions, s1.rotations, v1)
             self.stats.wall_s["elements"] += _time.perf_counter() - t0
-            res_nodal, _ = self._nodal_residual(s1, qdd, v1, fint, fc, t1)
+            res_nodal = self._nodal_residual(s1, qdd, v1, fint, fc, t1)
             if self._factor_h != h:
                 t0 = _time.perf_counter()
                 dk, dc = self._tangent
@@ -709,15 +707,15 @@ class GeneralizedAlpha:
         diag = np.abs(self._mat.diagonal())
         scaled = np.divide(np.abs(r), diag, out=np.full(r.shape, np.inf), where=diag > 0)
         if r.size == self._ext_dofs.size:  # no FDR reduction: rotations in radians
-            scaled[self._ext_dofs % 6 >= 3] *= self.elem_size
+            scaled[self._ext_rotation] *= self.elem_size
         limit = self.opt.newton_residual_tol * self.opt.newton_tol * self.opt.tol_displacement
         return not float(scaled.max(initial=0.0)) <= max(limit, self._floor)
 
     def _finish_iterate(self, s0, s1, theta, h, t1, check_balance: bool):
         """Velocities, accelerations and contact forces of the iterate ``s1`` that passed
-        Newton's correction test; with ``check_balance`` also its residual test (the forces
-        balance to ``newton_residual_tol`` of their size). Returns (qdd, a_alg), or None if
-        the residual is out of balance (Newton iterates on)."""
+        Newton's correction test; with ``check_balance`` also its residual test
+        (:meth:`_unbalanced`). Returns (qdd, a_alg), or None if the residual is out of balance
+        (Newton iterates on)."""
         m = self.model
         a1, qdd, v1 = self._kinematics(
             s0, self._alg, np.hstack([s1.positions - s0.positions, theta]), h
@@ -733,9 +731,7 @@ class GeneralizedAlpha:
             t0 = _time.perf_counter()
             fint, _ = asm.internal_forces(m, s1.positions, s1.rotations, v1)
             self.stats.wall_s["elements"] += _time.perf_counter() - t0
-            res, _ = self._nodal_residual(
-                s1, qdd, v1, fint, np.zeros_like(fint) if fc is None else fc, t1
-            )
+            res = self._nodal_residual(s1, qdd, v1, fint, 0.0 if fc is None else fc, t1)
             r = asm.free_vector(m, res)
             t_red = asm.reduction(m, s1.rotations)
             if t_red is not None:
