@@ -233,6 +233,55 @@ def test_assembly_ends_at_rest_wrapped_and_not_penetrated(small):
     assert p[:, 2].max() - p[:, 2].min() >= 10e-3
 
 
+def test_assembly_checks_its_shape_against_table2(small):
+    # the coarse (20 mm) assembly of the small example records its shape and passes it:
+    # outer size within one element of its Table 2 row (or of the flat packaging the
+    # construction needs, where larger), the film on the content's faces within half an
+    # element (measured: micrometres), no content outside
+    shape = small.info["shape"]
+    assert shape["failures"] == []
+    spec, h = small.build.spec, small.build.element_size * 1e3
+    for outer, table2, bound in zip(shape["outer_mm"], shape["table2_mm"], shape["bound_mm"],
+                                    strict=True):  # fmt: skip
+        assert outer <= bound and bound >= table2 + h
+    assert shape["table2_mm"] == [spec.length_mm, spec.width_mm, spec.height_mm]
+    # it wraps the content: at least the content's height, at most one element more than Table 2
+    assert spec.content_height_mm <= shape["outer_mm"][2] <= spec.height_mm + h
+    assert shape["gap_mm"]["uncovered"] == 0.0
+    assert -h < shape["gap_mm"]["min"] <= shape["gap_mm"]["max"] < 0.5 * h
+    assert shape["content_outside"] == 0 and shape["outside_depth_mm"] == 0.0
+
+
+def test_shape_check_fails_a_balloon_an_oversize_and_a_content_outside(small):
+    # the checks must be able to fail: the small example's settled state, altered
+    from flexparcel.consignments.shape import check_shape
+
+    b = ModelBuilder()
+    c = add_consignment(b, small.build)
+    model = b.finalize()
+    pos, rot = small.positions.copy(), small.rotations.copy()
+    assert check_shape(model, c, pos, rot).failures() == []
+    h = small.build.element_size
+    # balloon: the top layer lifted by one element off the content (the 15 mm KP/BW case)
+    balloon = pos.copy()
+    balloon[c.top, 2] += h
+    failures = check_shape(model, c, balloon, rot).failures()
+    assert any("film-content gap" in f for f in failures)
+    assert any("outer height" in f for f in failures)
+    # stretched 1.5-fold in length: longer than Table 2 + one element
+    long = pos.copy()
+    centre = pos[c.packaging, 0].mean()
+    long[c.packaging, 0] = centre + 1.5 * (pos[c.packaging, 0] - centre)
+    assert any("outer length" in f for f in check_shape(model, c, long, rot).failures())
+    # the content moved out through the top, 5 mm above the film
+    out = pos.copy()
+    out[c.content_nodes, 2] = pos[c.packaging, 2].max() + 5e-3
+    sc = check_shape(model, c, out, rot)
+    assert sc.content_outside == len(c.content_nodes)
+    assert sc.outside_depth_mm == pytest.approx(5.0 - c.contact_radius * 1e3, abs=0.5)
+    assert any("outside the film" in f for f in sc.failures())
+
+
 def test_snapshot_round_trip_is_exact(small, tmp_path):
     path = save_snapshot(small, tmp_path / "s.npz")
     back = load_snapshot(path)
@@ -333,7 +382,7 @@ def test_drop_plate_meets_the_content_box_once_through_its_packaging(small_drop)
 def test_rebound_counts_from_the_first_touch_of_the_given_radius():
     from types import SimpleNamespace
 
-    from flexparcel.scenarios.consignment_tests import rebound_height
+    from flexparcel.scenarios.consignment_tests import com_rise
 
     # one node falling to z = 2 mm (an edge contact of radius 2 mm touches there), pushed back
     # up to 5 mm, then down again: the rebound is 3 mm above the touch; with the packaging's
@@ -344,8 +393,8 @@ def test_rebound_counts_from_the_first_touch_of_the_given_radius():
     model = SimpleNamespace(mass=np.ones((1, 6)))
     res = SimpleNamespace(positions=pos)
     c = SimpleNamespace(node_ids=np.array([0]), packaging=np.array([0]), contact_radius=0.25e-3)
-    assert rebound_height(model, res, c) == 0.0
-    assert rebound_height(model, res, c, touch_radius=2e-3) == pytest.approx(3e-3)
+    assert com_rise(model, res, c) == 0.0
+    assert com_rise(model, res, c, touch_radius=2e-3) == pytest.approx(3e-3)
 
 
 # --------------------------------------------------------------------------------------------
@@ -414,7 +463,7 @@ def test_assembly_grows_a_shrunk_content_back_without_penetration():
 def test_rebound_is_the_first_bounce_even_if_it_sinks_lower_afterwards():
     from types import SimpleNamespace
 
-    from flexparcel.scenarios.consignment_tests import rebound_height
+    from flexparcel.scenarios.consignment_tests import com_rise
 
     # touches at z = 3 mm (frame 1), bottoms out at 2 mm, bounces to 4 mm, then tips over and
     # sinks to 1 mm: the rebound is the bounce, 4 - 3 = 1 mm (the old global-minimum rule,
@@ -425,10 +474,10 @@ def test_rebound_is_the_first_bounce_even_if_it_sinks_lower_afterwards():
     model = SimpleNamespace(mass=np.ones((1, 6)))
     res = SimpleNamespace(positions=pos)
     c = SimpleNamespace(node_ids=np.array([0]), packaging=np.array([0]), contact_radius=3e-3)
-    assert rebound_height(model, res, c) == pytest.approx(1e-3)
+    assert com_rise(model, res, c) == pytest.approx(1e-3)
     # still sinking at the end: no bounce
     pos[:, 0, 2] = np.array([5.0, 3.0, 2.0, 1.5, 1.2, 1.0]) * 1e-3
-    assert rebound_height(model, res, c) == 0.0
+    assert com_rise(model, res, c) == 0.0
 
 
 def test_closing_holds_the_layers_centre_nodes_in_plane_only():

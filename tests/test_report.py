@@ -179,20 +179,29 @@ def test_curves_draw_their_reference_lines(monkeypatch, tmp_path):
 
     figures = []
     monkeypatch.setattr(consignment, "_save", lambda fig, path, dpi=None: figures.append(fig))
+    from flexparcel.scenarios.drop import DropCurve
+
     t = np.linspace(0.0, 0.3, 31)
     z = 0.1 - 0.5 * t
+    gap = np.abs(z - 0.05)  # touches at 0.1 s, lifts off the plate again after it
+    curve = DropCurve(gap=gap, gap_peak=20, z_centre=z, touch=(0.1, 0.05), deepest=10,
+                      centre_peak=None)  # fmt: skip
     refs = [(label, mm * 1e-3, kind) for label, _, mm, kind in paper_lines("drop-vertical",
                                                                               "KPBW")]  # fmt: skip
-    consignment.plot_drop_curve(tmp_path / "d.png", t, z, touch=(0.1, 0.05), peak=20,
-                                rebound=0.005, references=refs)  # fmt: skip
-    lines = {ln.get_label(): ln.get_ydata()[0] for ln in figures[-1].axes[0].get_lines()}
-    # heights [mm]: the touch height, and Table 7's 6.2 mm, the real 7 mm and ours above it
-    assert lines["height at first contact (rebound measured from here)"] == pytest.approx(50.0)
-    assert lines["paper Table 7 (RecurDyn)"] == pytest.approx(56.2)
-    assert lines["real-world test"] == pytest.approx(57.0)
-    assert lines["rebound peak"] == pytest.approx(55.0)
-    consignment.plot_drop_curve(tmp_path / "d.png", t, z, touch=(0.1, 0.05), peak=20,
-                                rebound=None)  # fmt: skip
+    consignment.plot_drop_curve(tmp_path / "d.png", t, curve, rebound=0.005,
+                                references=refs)  # fmt: skip
+    top, bottom = figures[-1].axes
+    lines = {ln.get_label(): ln.get_ydata()[0] for ln in top.get_lines()}
+    # the rebound is a clearance above the plate [mm]: the plate at 0, Table 7's 6.2 mm, the
+    # real 7 mm and ours above it
+    assert lines["plate (rebound measured from here)"] == pytest.approx(0.0)
+    assert lines["paper Table 7 (RecurDyn)"] == pytest.approx(6.2)
+    assert lines["real-world test"] == pytest.approx(7.0)
+    assert lines["rebound peak"] == pytest.approx(5.0)
+    # the centre of mass's rise, the second response, is measured from the touch height
+    below = {ln.get_label(): ln.get_ydata()[0] for ln in bottom.get_lines()}
+    assert below["height at first contact (rise measured from here)"] == pytest.approx(50.0)
+    consignment.plot_drop_curve(tmp_path / "d.png", t, curve, rebound=None)
     ax = figures[-1].axes[0]
     assert "rebound peak" not in [ln.get_label() for ln in ax.get_lines()]
     assert not [a for a in ax.texts if "rebound" in a.get_text()]  # no "rebound 0.0 mm"
@@ -266,5 +275,5 @@ def test_drop_curve_touches_where_the_response_does():
     for test, radius in (("drop-vertical", 2 * r), ("drop-horizontal", r)):
         res = SimpleNamespace(time=t, positions=pos)
         run = SimpleNamespace(test=test, result=res, consignment=c, model=model)
-        _, touch, _, _ = drop_curve(run)
+        touch = drop_curve(run).touch
         assert touch[0] == pytest.approx((0.01 - radius) / 0.1, abs=1e-12), test

@@ -307,7 +307,7 @@ def _drop_record(low_gaps_m, com_m):
 
 
 def test_camera_clearance_is_the_gap_under_the_lowest_point_not_the_centre_rise():
-    from flexparcel.scenarios.consignment_tests import camera_clearance, rebound_outcome
+    from flexparcel.scenarios.consignment_tests import camera_clearance, com_rise_outcome
 
     # falls, touches, its lowest point leaves the plate by 3 mm and lands again, while the
     # centre of mass keeps sinking (a consignment tipping over): the camera sees 3 mm
@@ -315,13 +315,13 @@ def test_camera_clearance_is_the_gap_under_the_lowest_point_not_the_centre_rise(
     com = [0.05, 0.03, 0.029, 0.028, 0.027, 0.026, 0.025]
     gap, why = camera_clearance(*_drop_record(gaps, com))
     assert gap == pytest.approx(0.003) and why == ""
-    rise, _ = rebound_outcome(*_drop_record(gaps, com))
+    rise, _ = com_rise_outcome(*_drop_record(gaps, com))
     assert not rise  # the centre-of-mass rebound sees no bounce at all
     # a box bouncing inside an envelope that stays on the plate: the centre rises, the gap
     # under the lowest point stays 0
     com_box = [0.05, 0.03, 0.032, 0.034, 0.032, 0.03, 0.03]
     assert camera_clearance(*_drop_record([0.02] + [0.0] * 6, com_box))[0] == 0.0
-    assert rebound_outcome(*_drop_record([0.02] + [0.0] * 6, com_box))[0] == pytest.approx(0.004)
+    assert com_rise_outcome(*_drop_record([0.02] + [0.0] * 6, com_box))[0] == pytest.approx(0.004)
     # not reached: no touch, or the gap still growing at the end of the record
     assert camera_clearance(*_drop_record([0.03, 0.02, 0.01], [0.1] * 3)) == (
         None, "the consignment did not touch the plate within the run")  # fmt: skip

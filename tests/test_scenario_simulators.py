@@ -20,7 +20,7 @@ def test_the_four_tests_are_registered_through_entry_points_without_fe_imports()
         "infos = [get_simulator(n) for n in ('swing', 'drop-vertical', 'drop-horizontal',"
         " 'conveyor')]\n"
         "assert infos[0].responses == ('first_swing_mm', 'second_swing_mm')\n"
-        "assert infos[1].responses == ('rebound_mm', 'clearance_mm')\n"
+        "assert infos[1].responses == ('rebound_mm', 'com_rise_mm')\n"
         "assert 'numba' not in sys.modules and 'flexparcel.integrate' not in sys.modules\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-__all__ = ["register", "run", "CONSIGNMENT_HELP"]
+__all__ = ["register", "run", "shape_line", "CONSIGNMENT_HELP"]
 
 CONSIGNMENT_HELP = (
     "a paper consignment (KPBW or KP/BW, PB, KP, BW) or a consignment .toml file "
@@ -40,6 +40,18 @@ def element_size_m(mm: float | None) -> float | None:
     return None if mm is None else mm * 1e-3
 
 
+def shape_line(shape: dict) -> str:
+    """One line on the assembled shape (:mod:`flexparcel.consignments.shape`)."""
+    outer = " x ".join(f"{v:.0f}" for v in shape["outer_mm"])
+    table2 = " x ".join(f"{v:g}" for v in shape["table2_mm"])
+    gap = shape["gap_mm"]
+    return (
+        f"shape: {outer} mm (Table 2: {table2} mm), film on the content within "
+        f"{gap['max']:.2f} mm (bound {shape['gap_bound_mm']:.1f} mm), "
+        f"{shape['content_outside']} content node(s) outside"
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from flexparcel.cli.outdir import report_failure
     from flexparcel.cli.snapshots import UNSETTLED_FILES, assemble_job
@@ -65,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
         f"settled at t = {info['end_time_s']:.3f} s after {info['steps']} steps, "
         f"{info['wall_s']:.1f} s wall (kinetic energy {info['kinetic_energy_J']:.2g} J)"
     )
+    print(shape_line(info["shape"]))
     for key, path in files.as_dict().items():
         print(f"{key + ':':<18}{path}")
     return 0

@@ -16,7 +16,9 @@
    kinetic energy is below ``kinetic_tolerance`` or after ``max_settle_time``.
 
 The three phases are three models of the same mesh (node numbering is identical by
-construction); the state carries over. The result is a :class:`Snapshot` at rest.
+construction); the state carries over. The result is a :class:`Snapshot` at rest, its shape
+checked (:mod:`flexparcel.consignments.shape`: outer size against Table 2, the film on its
+content, no content outside).
 """
 
 from __future__ import annotations
@@ -34,12 +36,12 @@ from flexparcel.consignments.build import (
     add_consignment,
     default_packaging_content_law,
 )
+from flexparcel.consignments.shape import check_shape, content_outside_packaging
 from flexparcel.consignments.snapshot import Snapshot
 from flexparcel.contact.law import ContactLaw
 from flexparcel.elements.solid import SolidGroup
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.dynamic import IntegratorOptions
-from flexparcel.model.mesh import surface_triangles
 from flexparcel.model.model import BoxGrowth, Model, State
 from flexparcel.model.schedule import Schedule
 from flexparcel.simulate import simulate
@@ -67,9 +69,10 @@ def _assembly_law(friction: str) -> ContactLaw:
 
 
 class AssemblyError(RuntimeError):
-    """The packaging could not be opened or did not come to rest. ``unsettled``: the state
-    at the end of the settling (a :class:`Snapshot`, ``info["at_rest"]`` False) when the
-    consignment did not come to rest, else None."""
+    """The packaging could not be opened, did not come to rest or came to rest in a wrong
+    shape (:func:`flexparcel.consignments.shape.check_shape`). ``unsettled``: the state at
+    the end of the settling (a :class:`Snapshot`; its ``info["shape"]`` holds the shape's
+    figures) in the last two cases, else None."""
 
     def __init__(self, message: str, unsettled: Snapshot | None = None) -> None:
         super().__init__(message)
@@ -304,42 +307,6 @@ def _settle_deadline(st: AssemblySettings, t_open: float, f0: float) -> float:
     return t_open + st.release_time + (st.growth_time if f0 < 1.0 else 0.0) + st.max_settle_time
 
 
-def _ray_crossings(points: np.ndarray, tri: np.ndarray, up: bool) -> np.ndarray:
-    """Number of triangles (t, 3, 3) [m] that the vertical ray from each point (n, 3) [m]
-    crosses (along +z if ``up``, else -z): the ray-triangle test of Moeller & Trumbore
-    (J. Graphics Tools 2, 1997), which for a vertical ray reduces to 2D barycentric
-    coordinates of the point in the triangle's top view and the height of the crossing."""
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    e1, e2 = (b - a)[:, :2], (c - a)[:, :2]
-    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]  # top-view area x 2
-    ok = np.abs(det) > 1e-18
-    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-    d = points[:, None, :2] - a[None, :, :2]  # (n, t, 2)
-    u = (d[..., 0] * e2[:, 1] - d[..., 1] * e2[:, 0]) * inv
-    v = (e1[:, 0] * d[..., 1] - e1[:, 1] * d[..., 0]) * inv
-    z = a[:, 2] + u * (b[:, 2] - a[:, 2]) + v * (c[:, 2] - a[:, 2])
-    above = z > points[:, None, 2] if up else z < points[:, None, 2]
-    return (ok & (u >= 0) & (v >= 0) & (u + v <= 1) & above).sum(axis=1)
-
-
-def content_outside_packaging(model: Model, c: Consignment, positions: np.ndarray) -> np.ndarray:
-    """Ids of ``c``'s content nodes that lie outside its closed packaging at ``positions``
-    (node_count, 3) [m]: a point is inside a closed surface when a ray from it crosses the
-    surface an odd number of times (Jordan curve theorem). A node counts as outside only when
-    the rays up and down both say so, which keeps a ray through a film edge (counted twice)
-    from misjudging it. Meaningful once the packaging is closed round its content (after the
-    assembly), not for the flat packaging before its opening.
-
-    For a rigid content the node is its centre of mass."""
-    film = np.zeros(model.node_count, bool)
-    film[c.packaging] = True
-    tri = positions[surface_triangles(model.cells, film)]
-    # a nudge off the mesh's regular lines, so rays do not pass exactly through film nodes
-    p = positions[c.content_nodes] + np.array([1.1e-7, 1.3e-7, 0.0])
-    outside = (_ray_crossings(p, tri, True) % 2 == 0) & (_ray_crossings(p, tri, False) % 2 == 0)
-    return c.content_nodes[outside]
-
-
 def assemble(
     build: ConsignmentBuild,
     settings: AssemblySettings | None = None,
@@ -432,15 +399,23 @@ def assemble(
         "packaging_mass_kg": float(c.packaging_mass),
         "content_mass_kg": float(c.content_mass),
         "at_rest": bool(kin < st.kinetic_tolerance),
-        # content nodes the closed packaging does not hold (see content_outside_packaging)
-        "content_nodes_outside": int(content_outside_packaging(model_c, c, s.positions).size),
     }
+    shape = check_shape(model_c, c, s.positions, s.rotations)
+    # content nodes the closed packaging does not hold (see content_outside_packaging)
+    info["content_nodes_outside"] = shape.content_outside
+    info["shape"] = shape.to_dict()
+    info["wall_s"] = time.perf_counter() - wall0
     snap = Snapshot(build, model_c.positions0[:n].copy(), s.positions.copy(),
                     s.rotations.copy(), info)  # fmt: skip
     if not info["at_rest"]:
         raise AssemblyError(
             f"{build.spec.id}: not at rest after {st.max_settle_time} s of settling (kinetic "
             f"energy {kin:.3g} J >= {st.kinetic_tolerance:g} J)",
+            unsettled=snap,
+        )
+    if shape.failures():
+        raise AssemblyError(
+            f"{build.spec.id}: at rest in a wrong shape: " + "; ".join(shape.failures()),
             unsettled=snap,
         )
     return snap

@@ -12,9 +12,14 @@ Responses (all in mm):
   mean x of its nodes) swings down, under the clamp and past it; the first swing is its peak
   horizontal excursion beyond the vertical through the clamp edge, the second the peak on the
   way back (paper Fig. 25, 27: "displacement in the x-direction" along the ruler).
-- ``rebound_mm``: how high the consignment's centre of mass rises after the impact above the
-  height it had when the packaging first touched the plate (the rebound height of a rigid
-  body; 0 if it never rises above that height again).
+- ``rebound_mm``: the largest clearance between the plate and the consignment's lowest point
+  after the first touch, what a camera beside the plate sees (the paper's Fig. 28 measures
+  the rebound this way, against a ruler behind the plate): :func:`camera_clearance`.
+- ``com_rise_mm``: how high the consignment's centre of mass rises in its first bounce above
+  the height it had when the packaging first touched the plate (the rebound height of a rigid
+  body): :func:`com_rise`. A second response, not the paper's: a consignment that tips over
+  while its lowest point leaves the plate shows a clearance but no rise, and a box bouncing
+  inside a resting envelope shows a rise but no clearance.
 
 Friction: ``stick_model=True`` (the default) uses the stick model with k_t = c on every pair
 (see :func:`flexparcel.consignments.build.default_packaging_content_law` for why: 7x fewer
@@ -52,9 +57,11 @@ __all__ = [
     "drop_test",
     "swing_peaks",
     "swing_responses",
-    "rebound_outcome",
+    "com_rise_outcome",
     "camera_clearance",
-    "rebound_height",
+    "lowest_point_gap",
+    "clearance_peak",
+    "com_rise",
     "consignment_options",
 ]
 
@@ -323,15 +330,16 @@ def drop_test(
     p = parse_assignments(parameters)
     tm = drop_model(snapshot, orientation, p, drop_height=drop_height, stick_model=stick_model)
     res, wall = _run(tm.model, tm.state0, t_end, dt_out, options, progress)
-    rebound = rebound_height(tm.model, res, tm.consignment, touch_radius=tm.reference)
-    return TestRun(f"drop-{orientation}", res, {"rebound_mm": rebound * 1e3}, p, tm.model,
-                   tm.consignment, wall)  # fmt: skip
+    gap, _ = camera_clearance(tm.model, res, tm.consignment, touch_radius=tm.reference)
+    rise = com_rise(tm.model, res, tm.consignment, touch_radius=tm.reference)
+    responses = {"rebound_mm": (gap or 0.0) * 1e3, "com_rise_mm": rise * 1e3}
+    return TestRun(f"drop-{orientation}", res, responses, p, tm.model, tm.consignment, wall)
 
 
-def rebound_outcome(
+def com_rise_outcome(
     model: Model, res: SimulationResult, c: Consignment, touch_radius: float | None = None
 ) -> tuple[float | None, str]:
-    """Rebound [m] as :func:`rebound_height` defines it, or None and why where the record
+    """Centre-of-mass rise [m] as :func:`com_rise` defines it, or None and why where the record
     does not reach it: no touch of the plate, no rise after the touch, or still rising at
     the last frame (its peak lies beyond the record)."""
     value, missing = _bounce(model, res, c, touch_radius)
@@ -345,11 +353,29 @@ def camera_clearance(
     between the plate and the consignment's lowest point (its lowest packaging node's
     surface, ``touch_radius`` [m] below the node, default the contact radius) after the first
     touch; or None and why where the record does not reach it (no touch, or the gap still
-    growing at the last frame). Unlike :func:`rebound_height` it does not follow the centre
+    growing at the last frame). This is the drop tests' ``rebound_mm``. Unlike
+    :func:`com_rise` it does not follow the centre
     of mass: a consignment that tips over while its lowest point leaves the plate by 3 mm
     shows 3 mm here, and a box bouncing inside a resting envelope shows none."""
+    gap = lowest_point_gap(res, c, touch_radius)
+    peak, why = clearance_peak(gap)
+    return (None, why) if peak is None else (max(0.0, float(gap[peak])), "")
+
+
+def lowest_point_gap(
+    res: SimulationResult, c: Consignment, touch_radius: float | None = None
+) -> np.ndarray:
+    """Gap [m] (k,) between the plate (z = 0) and the consignment's lowest point in every
+    frame: the lowest packaging node's height minus ``touch_radius`` [m] (default the contact
+    radius); negative while the contact is compressed."""
     radius = c.contact_radius if touch_radius is None else touch_radius
-    gap = res.positions[:, c.packaging, 2].min(axis=1) - radius
+    return res.positions[:, c.packaging, 2].min(axis=1) - radius
+
+
+def clearance_peak(gap: np.ndarray) -> tuple[int | None, str]:
+    """Frame of the largest clearance after the first touch in a :func:`lowest_point_gap`
+    curve (the rebound's frame; a touch with no clearance after it: the last frame at the
+    largest value, 0), or None and why where the record does not reach it."""
     touch = np.flatnonzero(gap <= 0.0)
     if touch.size == 0:
         return None, "the consignment did not touch the plate within the run"
@@ -357,13 +383,14 @@ def camera_clearance(
     peak = int(np.argmax(after))
     if peak == after.size - 1 and after[-1] > 0.0:
         return None, "the gap was still growing at the end of the run: its peak lies beyond it"
-    return float(after[peak]), ""
+    return int(touch[0]) + peak, ""
 
 
-def rebound_height(
+def com_rise(
     model: Model, res: SimulationResult, c: Consignment, touch_radius: float | None = None
 ) -> float:
-    """Rebound [m]: the rise of the centre of mass in the first bounce above its height at the
+    """Centre-of-mass rise [m] (the drop tests' ``com_rise_mm``): the rise of the centre of
+    mass in the first bounce above its height at the
     first touch (the lowest packaging node reaching ``touch_radius`` [m], default the contact
     radius); 0 without a touch. The bounce runs from the first minimum of the centre height
     after the touch until the centre falls back below that minimum (a consignment that bounces
@@ -375,7 +402,7 @@ def rebound_height(
 def _bounce(
     model: Model, res: SimulationResult, c: Consignment, touch_radius: float | None
 ) -> tuple[float, str]:
-    """:func:`rebound_height`'s value [m] and, where the record does not reach the rebound,
+    """:func:`com_rise`'s value [m] and, where the record does not reach the rise,
     why (else "")."""
     ids = c.node_ids
     m = model.mass[ids, 0]

@@ -2,18 +2,19 @@
 ``drop_height`` (200 mm) above a rigid plate, standing on an edge (``drop-vertical``, with
 the edge's line contact) or lying flat (``drop-horizontal``), 0.3 s.
 
-Responses [mm]: ``rebound_mm``, the rise of the centre of mass in the first bounce above its
-height at the first touch (:func:`~flexparcel.scenarios.consignment_tests.rebound_outcome`),
-and ``clearance_mm``, the largest gap between the plate and the consignment's lowest point
-after the first touch, as a camera beside the plate sees it (the paper's Fig. 28;
-:func:`~flexparcel.scenarios.consignment_tests.camera_clearance`); either is not reached when
-the run ends before the touch or before its peak. Files: see
+Responses [mm]: ``rebound_mm``, the largest gap between the plate and the consignment's
+lowest point after the first touch, as a camera beside the plate sees it (the paper's
+Fig. 28; :func:`~flexparcel.scenarios.consignment_tests.camera_clearance`), and
+``com_rise_mm``, the rise of the centre of mass in the first bounce above its height at the
+first touch (:func:`~flexparcel.scenarios.consignment_tests.com_rise_outcome`), a second
+response; either is not reached when the run ends before the touch or before its peak. Files: see
 :mod:`flexparcel.scenarios.consignment_scenario`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -24,16 +25,25 @@ from flexparcel.scenarios.consignment_tests import (
     TestModel,
     TestRun,
     camera_clearance,
+    clearance_peak,
+    com_rise_outcome,
     drop_model,
     drop_test,
     drop_touch_radius,
-    rebound_outcome,
+    lowest_point_gap,
 )
 
 if TYPE_CHECKING:
     from flexparcel.consignments.snapshot import Snapshot
 
-__all__ = ["DropScenario", "vertical_drop", "horizontal_drop", "drop_curve", "DROP_HEIGHT"]
+__all__ = [
+    "DropScenario",
+    "vertical_drop",
+    "horizontal_drop",
+    "drop_curve",
+    "DropCurve",
+    "DROP_HEIGHT",
+]
 
 DROP_HEIGHT = 0.200
 """Drop height of the paper's tests [m]: the lowest point above the plate at release."""
@@ -74,15 +84,15 @@ class DropScenario(ConsignmentTest):
     def responses(self, result: ScenarioResult) -> dict[str, Response]:
         run: TestRun = result.record
         touch = drop_touch_radius(run.consignment, self.orientation)
-        value, why = rebound_outcome(run.model, run.result, run.consignment, touch)
+        rise, rise_why = com_rise_outcome(run.model, run.result, run.consignment, touch)
         gap, gap_why = camera_clearance(run.model, run.result, run.consignment, touch)
         return {
             "rebound_mm": mm_response(
-                value, "rise of the centre of mass in the first bounce above its height at "
-                "the first touch", why),
-            "clearance_mm": mm_response(
                 gap, "largest gap between the plate and the consignment's lowest point after "
-                "the first touch (a camera's view, the paper's Fig. 28)", gap_why),
+                "the first touch (a camera's view, as the paper measured it: Fig. 28)", gap_why),
+            "com_rise_mm": mm_response(
+                rise, "rise of the centre of mass in the first bounce above its height at the "
+                "first touch (a second response, not the paper's)", rise_why),
         }  # fmt: skip
 
     def _summary_settings(self, result: ScenarioResult) -> dict:
@@ -99,33 +109,50 @@ def horizontal_drop(**options: Any) -> DropScenario:
     return DropScenario("horizontal", **options)
 
 
-def drop_curve(run: TestRun, touch_radius: float | None = None
-               ) -> tuple[np.ndarray, tuple[float, float] | None, int | None,
-                          int | None]:  # fmt: skip
-    """The drop's centre-of-mass height [m] (k,), the first contact ``(time [s], centre
-    height [m])``, the frame of deepest compression and the frame of the rebound peak (None
-    where there is none), as in
-    :func:`~flexparcel.scenarios.consignment_tests.rebound_height`. ``touch_radius`` [m]:
-    the contact radius of the first touch, by default that of the run's orientation
+@dataclass
+class DropCurve:
+    """What a drop's response plot draws, on the recorded frames (k of them)."""
+
+    gap: np.ndarray
+    """Gap between the plate and the lowest point [m] (k,): the rebound's curve."""
+    gap_peak: int | None
+    """Frame of the rebound (largest clearance after the first touch), or None."""
+    z_centre: np.ndarray
+    """Height of the centre of mass [m] (k,)."""
+    touch: tuple[float, float] | None
+    """First contact: (time [s], centre height [m]), or None without a touch."""
+    deepest: int | None
+    """Frame of the centre's lowest point after the touch."""
+    centre_peak: int | None
+    """Frame of the centre's highest point after its lowest (above the touch height), or None."""
+
+
+def drop_curve(run: TestRun, touch_radius: float | None = None) -> DropCurve:
+    """The drop's curves for its plot, measured as the responses are
+    (:func:`~flexparcel.scenarios.consignment_tests.camera_clearance` and
+    :func:`~flexparcel.scenarios.consignment_tests.com_rise`). ``touch_radius`` [m]: the
+    contact radius of the first touch, by default that of the run's orientation
     (:func:`~flexparcel.scenarios.consignment_tests.drop_touch_radius`: standing on its edge,
     the edge's line contact), so that the curve's touch is the response's."""
     res, c = run.result, run.consignment
     if touch_radius is None:
         touch_radius = drop_touch_radius(c, run.test.removeprefix("drop-"))
+    gap = lowest_point_gap(res, c, touch_radius)
+    gap_peak, _ = clearance_peak(gap)
     ids = c.node_ids
     m = run.model.mass[ids, 0]
     zc = res.positions[:, ids, 2] @ m / m.sum()
-    low = res.positions[:, c.packaging, 2].min(axis=1) - touch_radius
-    touch = np.flatnonzero(low <= 0.0)
+    touch = np.flatnonzero(gap <= 0.0)
     if touch.size == 0:
-        return zc, None, None, None
+        return DropCurve(gap, None, zc, None, None, None)
     k = int(touch[0])
     if k > 0:
-        w = low[k - 1] / (low[k - 1] - low[k])
+        w = gap[k - 1] / (gap[k - 1] - gap[k])
         t_touch = res.time[k - 1] + w * (res.time[k] - res.time[k - 1])
         z_touch = zc[k - 1] + w * (zc[k] - zc[k - 1])
     else:
         t_touch, z_touch = res.time[0], zc[0]
     kmin = k + int(np.argmin(zc[k:]))
     peak = kmin + int(np.argmax(zc[kmin:]))
-    return zc, (float(t_touch), float(z_touch)), kmin, (peak if zc[peak] > z_touch else None)
+    return DropCurve(gap, gap_peak, zc, (float(t_touch), float(z_touch)), kmin,
+                     peak if zc[peak] > z_touch else None)  # fmt: skip

@@ -12,8 +12,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from flexparcel.scenarios.drop import DropCurve
 
 __all__ = [
     "Box",
@@ -274,41 +278,54 @@ def plot_swing_curve(
 def plot_drop_curve(
     path: str | Path,
     time: np.ndarray,
-    z_centre: np.ndarray,
+    curve: DropCurve,
     *,
-    touch: tuple[float, float] | None,
-    peak: int | None,
     rebound: float | None,
+    com_rise: float | None = None,
     title: str = "Drop test",
     references: Sequence[tuple[str, float, str]] = (),
 ) -> Path:
-    """Height of the centre of mass [m] (k,) over ``time`` [s] (k,): ``touch`` = (time [s],
-    centre height [m]) at the first contact with the plate, ``peak`` the frame of the highest
-    point after the impact, ``rebound`` [m] the response (peak height minus touch height;
-    None: not reached in this run, so not marked). The rebound is measured from the height
-    at the first contact, drawn as its reference line, and its peak level is drawn too.
-    ``references``: ``(label, rebound [m], kind)`` drawn at that rebound above the touch
-    height, kind ``"table7"`` or ``"real"``."""
+    """The drop's two responses over ``time`` [s] (k,), each with the line it is measured
+    from. Top: the gap between the plate and the consignment's lowest point (``curve.gap``),
+    measured from the plate (gap 0), with the rebound ``rebound`` [m] (the largest clearance
+    after the first touch; None: not reached, not marked) at ``curve.gap_peak``. Bottom: the
+    centre of mass's height, measured from its height at the first contact, with its rise
+    ``com_rise`` [m] at ``curve.centre_peak``. ``references``: ``(label, rebound [m], kind)``
+    drawn at that clearance above the plate, kind ``"table7"`` or ``"real"``."""
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7.0, 4.0), dpi=120)
-    ax.plot(time, 1e3 * np.asarray(z_centre), color="tab:blue", label="centre of mass height")
-    if touch is not None:
-        t_touch, z_touch = touch
-        ax.axhline(1e3 * z_touch, color="tab:orange", linewidth=0.9, linestyle="-.",
-                   label="height at first contact (rebound measured from here)")  # fmt: skip
-        ax.plot([t_touch], [1e3 * z_touch], "s", color="0.2")
-        _reference_lines(ax, [(label, 1e3 * (z_touch + r), kind)
-                              for label, r, kind in references])  # fmt: skip
-        if peak is not None and rebound is not None:
-            top = 1e3 * (z_touch + rebound)
-            ax.axhline(top, color="tab:red", linewidth=0.8, label="rebound peak")
-            ax.plot([time[peak]], [1e3 * z_centre[peak]], "o", color="tab:red")
-            ax.annotate(f"rebound {1e3 * rebound:.1f} mm", (time[peak], 1e3 * z_centre[peak]),
-                        textcoords="offset points", xytext=(8, 6), color="tab:red")  # fmt: skip
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("height [mm]")
-    ax.set_title(title)
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.0, 6.0), dpi=120, sharex=True)
+    gap_mm = 1e3 * np.asarray(curve.gap)
+    top.plot(time, gap_mm, color="tab:blue", label="lowest point above the plate")
+    top.axhline(0.0, color="0.3", linewidth=1.0, label="plate (rebound measured from here)")
+    _reference_lines(top, [(label, 1e3 * r, kind) for label, r, kind in references])
+    if rebound is not None and curve.gap_peak is not None:
+        k = curve.gap_peak
+        top.axhline(1e3 * rebound, color="tab:red", linewidth=0.8, label="rebound peak")
+        top.plot([time[k]], [gap_mm[k]], "o", color="tab:red")
+        top.annotate(f"rebound {1e3 * rebound:.1f} mm", (time[k], gap_mm[k]),
+                     textcoords="offset points", xytext=(8, 6), color="tab:red")  # fmt: skip
+    # the fall from 200 mm would squash the bounce: show the last 60 mm above the plate
+    top.set_ylim(min(-1.0, float(gap_mm.min()) - 1.0), max(60.0, 1e3 * (rebound or 0.0) + 5.0))
+    top.set_ylabel("clearance [mm]")
+    top.set_title(title)
+    top.grid(True, alpha=0.3)
+    top.legend(loc="best", fontsize=8)
+    zc = 1e3 * np.asarray(curve.z_centre)
+    bottom.plot(time, zc, color="tab:purple", label="centre of mass height")
+    if curve.touch is not None:
+        t_touch, z_touch = curve.touch
+        bottom.axhline(1e3 * z_touch, color="tab:orange", linewidth=0.9, linestyle="-.",
+                       label="height at first contact (rise measured from here)")  # fmt: skip
+        bottom.plot([t_touch], [1e3 * z_touch], "s", color="0.2")
+        if com_rise is not None and curve.centre_peak is not None:
+            k = curve.centre_peak
+            bottom.plot([time[k]], [zc[k]], "o", color="tab:green")
+            bottom.annotate(f"centre rise {1e3 * com_rise:.1f} mm", (time[k], zc[k]),
+                            textcoords="offset points", xytext=(8, 6),
+                            color="tab:green")  # fmt: skip
+    bottom.set_xlabel("time [s]")
+    bottom.set_ylabel("height [mm]")
+    bottom.grid(True, alpha=0.3)
+    bottom.legend(loc="best", fontsize=8)
     fig.tight_layout()
     return _save(fig, path)

@@ -94,23 +94,27 @@ def drop_pictures(result: ScenarioResult, out: Path) -> dict[str, Path]:
 
     run = result.record
     res = run.result
-    zc, touch, kmin, peak = drop_curve(run)
-    r = get_scenario(result.scenario).responses(result)["rebound_mm"]
+    curve_data = drop_curve(run)
+    responses = get_scenario(result.scenario).responses(result)
+    r, rise = responses["rebound_mm"], responses["com_rise_mm"]
     cid = run.consignment.build.spec.id
     curve = plot_drop_curve(
-        Path(out) / "response.png", res.time, zc, touch=touch, peak=peak,
+        Path(out) / "response.png", res.time, curve_data,
         rebound=None if r.value is None else r.value * 1e-3,
-        title=f"{result.scenario.replace('-', ' ').capitalize()} test, {cid}: centre of "
-        f"mass (rebound {_short(r)})",
+        com_rise=None if rise.value is None else rise.value * 1e-3,
+        title=f"{result.scenario.replace('-', ' ').capitalize()} test, {cid}: rebound "
+        f"{_short(r)}",
         references=[(label, mm * 1e-3, kind)
                     for label, _, mm, kind in paper_lines(result.scenario, cid)],
     )  # fmt: skip
     events: dict[int, str] = {}
-    if touch is not None:
-        events[min(int(np.searchsorted(res.time, touch[0])), len(res.time) - 1)] = "first contact"
-        events.setdefault(kmin, "deepest")
-    if peak is not None:
-        events.setdefault(peak, "rebound peak")
+    if curve_data.touch is not None:
+        t_touch = curve_data.touch[0]
+        events[min(int(np.searchsorted(res.time, t_touch)), len(res.time) - 1)] = "first contact"
+        if curve_data.deepest is not None:
+            events.setdefault(curve_data.deepest, "deepest")
+    if r.value is not None and curve_data.gap_peak is not None:
+        events.setdefault(curve_data.gap_peak, "rebound peak")
     # each frame centred on the consignment: a 200 mm fall would leave it a speck
     picture = _test_frames(result, Path(out) / "frames.png", events, plate_z=0.0,
                            clamp_x=None, shared_axes=False)  # fmt: skip
