@@ -377,3 +377,40 @@ def test_demo_starts_from_a_named_snapshot_folder_only_when_it_fits(tmp_path):
         given_snapshot(resolve_consignment("KPBW", 0.010), shipped)
     with pytest.raises(FileNotFoundError, match="no snapshot of 'KPBW' in"):
         given_snapshot(resolve_consignment("KPBW", 0.025), tmp_path)
+
+
+def test_shipped_snapshots_are_taken_only_when_they_fit_and_passed_the_checks(
+    assembled, tmp_path, monkeypatch, capsys
+):
+    # run, demo, bench and the conveyor take a shipped snapshot (data/paper-snapshots-*/)
+    # instead of assembling, where one was assembled from the same build on today's mesh and
+    # passed the rest and shape checks; the command line says so
+    from dataclasses import replace
+
+    import flexparcel.consignments.snapshot as snapshot_mod
+    from flexparcel.cli.snapshots import shipped_or_assembled
+    from flexparcel.consignments.snapshot import load_snapshot, save_snapshot, shipped_snapshot
+
+    snap = load_snapshot(assembled / "snapshot.npz")
+    folder = tmp_path / "shipped"
+    folder.mkdir()
+    monkeypatch.setattr(snapshot_mod, "SHIPPED_SNAPSHOT_DIRS", (folder,))
+    path = folder / f"{snap.build.spec.id}.npz"
+    assert shipped_snapshot(snap.build) is None  # none shipped
+    save_snapshot(snap, path)
+    found, where = shipped_snapshot(snap.build)
+    assert where == path and np.array_equal(found.positions, snap.positions)
+    # another element size, an old snapshot without the shape check, a failed shape: not taken
+    coarser = replace(snap.build, element_size=2 * snap.build.element_size)
+    assert shipped_snapshot(coarser) is None
+    for info in (
+        {k: v for k, v in snap.info.items() if k != "shape"},
+        {**snap.info, "shape": {**snap.info["shape"], "failures": ["balloon"]}},
+    ):
+        save_snapshot(replace(snap, info=info), path)
+        assert shipped_snapshot(snap.build) is None
+    save_snapshot(snap, path)
+    out = tmp_path / "out"
+    got, source = shipped_or_assembled(snap.build, out, progress=False)
+    assert source == str(path) and "using the shipped snapshot" in capsys.readouterr().out
+    assert (out / "assembled.png").is_file()  # the assembly's files, as if assembled there

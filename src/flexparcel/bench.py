@@ -460,13 +460,15 @@ def _kpbw_tests(
     snapshot: str | Path | None = None,
     snapshot_dir: str | Path | None = None,
 ) -> dict:
-    """Bench case ``kpbw-tests``: KP/BW assembled (or ``snapshot``, or ``KPBW.npz`` from
-    ``snapshot_dir`` when it was assembled at this element size), then its swing (1.4 s),
+    """Bench case ``kpbw-tests``: KP/BW from ``snapshot``, or ``KPBW.npz`` from
+    ``snapshot_dir`` when it was assembled at this element size, or the shipped snapshot where
+    one fits (:func:`~flexparcel.consignments.snapshot.shipped_snapshot`), else assembled;
+    then its swing (1.4 s),
     vertical and horizontal drop (200 mm, 0.3 s) with the paper's Table 6 parameters; wall
     times next to RecurDyn's (384 / 125 / 76 s on 4 cores, scaled to the simulated time).
     ``quick``: 25 mm mesh, 0.1 s swing, 0.22 s drops (just past the impact)."""
     from flexparcel.consignments.assembly import assemble
-    from flexparcel.consignments.snapshot import load_snapshot
+    from flexparcel.consignments.snapshot import load_snapshot, shipped_snapshot
     from flexparcel.consignments.userfile import resolve_consignment
     from flexparcel.scenarios.consignment_tests import TABLE6_VALUES
     from flexparcel.scenarios.registry import get_scenario
@@ -485,7 +487,9 @@ def _kpbw_tests(
                                     element_size_given=size is not None, progress=False,
                                     log=lambda _m: None)  # fmt: skip
     else:
-        snap, source = assemble(resolve_consignment("KPBW", size)), "assembled"
+        build = resolve_consignment("KPBW", size)
+        shipped = shipped_snapshot(build)
+        snap, source = (shipped[0], str(shipped[1])) if shipped else (assemble(build), "assembled")
     assembly_wall = time.perf_counter() - t0
     recurdyn = {"swing": (384.0, 1.4), "drop-vertical": (125.0, 0.3),
                 "drop-horizontal": (76.0, 0.3)}  # fmt: skip

@@ -86,7 +86,7 @@ def given_snapshot(build, snapshot_dir: Path):
 
 def run(args: argparse.Namespace) -> int:
     from flexparcel.cli.outdir import report_failure
-    from flexparcel.cli.snapshots import assemble_job
+    from flexparcel.cli.snapshots import shipped_or_assembled
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
 
@@ -106,11 +106,13 @@ def run(args: argparse.Namespace) -> int:
               if isinstance(made, int | float) else ""))  # fmt: skip
     else:
         try:
-            snap, _ = assemble_job(build, out / "assembly", progress=progress)
+            snap, source = shipped_or_assembled(build, out / "assembly", progress=progress,
+                                                log=lambda m: print(f"demo: {m}"))  # fmt: skip
         except AssemblyError as exc:
             report_failure(f"flexparcel demo: assembly failed: {exc}")
             return 1
-        print(f"assembled in {snap.info['wall_s']:.1f} s")
+        if source.endswith("snapshot.npz"):
+            print(f"assembled in {snap.info['wall_s']:.1f} s")
     results = _run_tests(snap, out, mode, progress)
     total = time.perf_counter() - wall0
     report = _write_reports(out, build, snap.info, results, quick=args.quick, total_wall=total)

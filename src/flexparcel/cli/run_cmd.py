@@ -163,7 +163,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from flexparcel.cli.outdir import report_failure
-    from flexparcel.cli.snapshots import assemble_job
+    from flexparcel.cli.snapshots import shipped_or_assembled
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.snapshot import check_snapshot_matches, load_snapshot
     from flexparcel.consignments.userfile import resolve_consignment
@@ -196,8 +196,7 @@ def run(args: argparse.Namespace) -> int:
     progress = not args.no_progress
     try:
         if snap is None:
-            snap, files = assemble_job(build, args.out, progress=progress)
-            source = str(files.snapshot)
+            snap, source = shipped_or_assembled(build, args.out, progress=progress)
         else:
             source = str(args.snapshot)
         result, files = run_and_write(scenario, snap, params, args.out, t_end=args.t_end,

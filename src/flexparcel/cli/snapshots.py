@@ -24,6 +24,8 @@ __all__ = [
     "JobFiles",
     "check_snapshot_matches",
     "assemble_job",
+    "write_assembled",
+    "shipped_or_assembled",
     "snapshot_for",
 ]
 
@@ -90,9 +92,6 @@ def assemble_job(
     from flexparcel.cli.progress import PhaseProgress
     from flexparcel.consignments.assembly import AssemblyError, assemble
     from flexparcel.consignments.snapshot import save_snapshot
-    from flexparcel.elements.rotations import rotation_vectors
-    from flexparcel.io.paraview import write_paraview, write_paraview_boxes
-    from flexparcel.simulate import SimulationResult
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -104,10 +103,25 @@ def assemble_job(
             npz, png = UNSETTLED_FILES
             save_snapshot(exc.unsettled, out / npz)
             model, c = _consignment_model(build)
-            _snapshot_picture(out / png, exc.unsettled, "not at rest", model, c)
+            state = "not at rest" if not exc.unsettled.info["at_rest"] else "in a wrong shape"
+            _snapshot_picture(out / png, exc.unsettled, state, model, c)
         raise
     finally:
         line.done()
+    return snap, write_assembled(snap, out)
+
+
+def write_assembled(snap: Snapshot, out: Path) -> JobFiles:
+    """Write ``snap`` as an assembly's files into ``out``: ``snapshot.npz``,
+    ``assembly.json``, ``assembled.png`` and ParaView files."""
+    from flexparcel.consignments.snapshot import save_snapshot
+    from flexparcel.elements.rotations import rotation_vectors
+    from flexparcel.io.paraview import write_paraview, write_paraview_boxes
+    from flexparcel.simulate import SimulationResult
+
+    build = snap.build
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     files = JobFiles(out, out / "assembly.json")
     files.snapshot = save_snapshot(snap, out / "snapshot.npz")
     model, c = _consignment_model(build)
@@ -140,7 +154,7 @@ def assemble_job(
         "files": files.as_dict(),
     }
     write_json(files.json, summary)
-    return snap, files
+    return files
 
 
 def _cache_dir(out: Path, key: str, build: ConsignmentBuild) -> Path:
@@ -160,8 +174,9 @@ def snapshot_for(
     """The snapshot of ``build`` and where it came from: from ``snapshot_dir`` (a file
     ``KEY.npz`` or ``KEY/snapshot.npz``, or the cache layout below; it must have been
     assembled from ``build``, and with its element size when ``element_size_given``), else
-    the cache ``out/snapshots/KEY_SIZEmm/snapshot.npz`` when it matches ``build``, else
-    assembled now into that cache directory."""
+    the cache ``out/snapshots/KEY_SIZEmm/snapshot.npz`` when it matches ``build``, else the
+    shipped one where it fits, else assembled now into that cache directory
+    (:func:`shipped_or_assembled`)."""
     from flexparcel.consignments.snapshot import load_snapshot
 
     size = build.element_size if element_size_given else None
@@ -188,6 +203,32 @@ def snapshot_for(
         else:
             log(f"{key}: reusing {cache}")
             return snap, str(cache)
-    log(f"{key}: assembling ({build.element_size * 1e3:g} mm elements) into {cache.parent}")
-    snap, files = assemble_job(build, cache.parent, progress=progress)
+    return shipped_or_assembled(build, cache.parent, progress=progress, log=log, key=key)
+
+
+def shipped_or_assembled(
+    build: ConsignmentBuild,
+    out: Path,
+    *,
+    progress: bool = True,
+    log: Callable[[str], None] = print,
+    key: str | None = None,
+) -> tuple[Snapshot, str]:
+    """The shipped snapshot of ``build`` where one fits
+    (:func:`~flexparcel.consignments.snapshot.shipped_snapshot`), else ``build`` assembled
+    into ``out`` (:func:`assemble_job`); with where it came from. Says which on ``log``."""
+    from flexparcel.consignments.snapshot import shipped_snapshot
+
+    name = key or build.spec.id
+    shipped = shipped_snapshot(build)
+    if shipped is not None:
+        snap, path = shipped
+        wall = snap.info.get("wall_s")
+        made = f", its assembly took {wall:.0f} s" if isinstance(wall, int | float) else ""
+        log(f"{name}: using the shipped snapshot {path} ({build.element_size * 1e3:g} mm"
+            f"{made})")  # fmt: skip
+        write_assembled(snap, out)  # the assembly's files, as if assembled here
+        return snap, str(path)
+    log(f"{name}: assembling ({build.element_size * 1e3:g} mm elements) into {out}")
+    snap, files = assemble_job(build, out, progress=progress)
     return snap, str(files.snapshot)

@@ -28,10 +28,20 @@ __all__ = [
     "load_snapshot",
     "place_snapshot",
     "check_snapshot_matches",
+    "shipped_snapshot",
+    "SHIPPED_SNAPSHOT_DIRS",
     "SnapshotError",
 ]
 
 SNAPSHOT_FORMAT = 1
+
+SHIPPED_SNAPSHOT_DIRS = tuple(
+    Path(__file__).resolve().parents[3] / "data" / f"paper-snapshots-{size}"
+    for size in ("10mm", "25mm")
+)
+"""Where a source checkout keeps the paper consignments' snapshots (``NAME.npz``, made by
+``flexparcel assemble NAME``): at the paper's meshes (10 mm, BW 5 mm) and at 25 mm, the
+low-fidelity level. An installed wheel has none."""
 
 
 class SnapshotError(FileFormatError):
@@ -216,3 +226,35 @@ def check_snapshot_matches(
             f"the snapshot was assembled with {sb.element_size * 1e3:g} mm elements, not "
             f"{element_size * 1e3:g} mm; leave out --element-size or assemble it again"
         )
+
+
+def shipped_snapshot(build: ConsignmentBuild) -> tuple[Snapshot, Path] | None:
+    """The shipped snapshot of ``build`` (:data:`SHIPPED_SNAPSHOT_DIRS`) and its path, when
+    one was assembled from this build (spec, material and element size), on today's mesh
+    (its reference positions those of the mesh the builder makes now), and passed the
+    assembly's rest and shape checks (``info["shape"]`` without failures: a snapshot from
+    before the shape check is not taken); else None."""
+    from flexparcel.builder import ModelBuilder
+    from flexparcel.consignments.build import add_consignment
+
+    for folder in SHIPPED_SNAPSHOT_DIRS:
+        path = folder / f"{build.spec.id}.npz"
+        if not path.is_file():
+            continue
+        try:
+            snap = load_snapshot(path)
+            check_snapshot_matches(snap, build, build.element_size)
+        except ValueError:  # SnapshotError is one
+            continue
+        shape = snap.info.get("shape")
+        if not (snap.info.get("at_rest") and isinstance(shape, dict) and not shape["failures"]):
+            continue
+        b = ModelBuilder()
+        add_consignment(b, build)
+        model = b.finalize()
+        try:
+            snap.check_fits(model)
+        except SnapshotError:
+            continue
+        return snap, path
+    return None
