@@ -407,8 +407,9 @@ def _consignment_assembly(
 ) -> dict:
     """Bench case ``consignment-assembly``: open, fill, close and settle each consignment
     (presets or .toml files) at its own mesh size (paper: 10 mm, 5 mm for BW), or at
-    ``element_size_mm`` (``quick``: 25 mm). A consignment that fails to assemble is reported
-    with its error, not dropped. The paper gives no RecurDyn time for the assembly."""
+    ``element_size_mm`` (``quick``: 25 mm), with its shape check
+    (:mod:`flexparcel.consignments.shape`). A consignment that fails to assemble (or its shape
+    check) is reported with its error, not dropped. The paper gives no RecurDyn time for the assembly."""
     from flexparcel.builder import ModelBuilder
     from flexparcel.consignments.assembly import AssemblyError, assemble
     from flexparcel.consignments.build import add_consignment
@@ -434,7 +435,8 @@ def _consignment_assembly(
             info = snap.info
             row.update(wall_s=time.perf_counter() - t0, simulated_s=info["end_time_s"],
                        steps=info["steps"], opening_time_s=info["opening_time_s"],
-                       kinetic_energy_J=info["kinetic_energy_J"])  # fmt: skip
+                       content_scale=info["content_scale"],
+                       kinetic_energy_J=info["kinetic_energy_J"], shape=info["shape"])  # fmt: skip
         rows.append(row)
     done = [r for r in rows if "error" not in r]
     return {
