@@ -409,7 +409,8 @@ def _consignment_assembly(
     (presets or .toml files) at its own mesh size (paper: 10 mm, 5 mm for BW), or at
     ``element_size_mm`` (``quick``: 25 mm), with its shape check
     (:mod:`flexparcel.consignments.shape`). A consignment that fails to assemble (or its shape
-    check) is reported with its error, not dropped. The paper gives no RecurDyn time for the assembly."""
+    check) is reported with its error, not dropped. The paper gives no RecurDyn time for the
+    assembly."""
     from flexparcel.builder import ModelBuilder
     from flexparcel.consignments.assembly import AssemblyError, assemble
     from flexparcel.consignments.build import add_consignment
