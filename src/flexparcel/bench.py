@@ -529,6 +529,95 @@ def _kpbw_tests(
     }
 
 
+CONVERGENCE_SIZES_MM = (25.0, 15.0, 10.0, 7.0)
+"""Element sizes of the ``kpbw-convergence`` case [mm] (issue: 25 / 15 / 10 / 7 mm)."""
+
+
+def _convergence_snapshot(size_mm: float, work: Path):
+    """KP/BW at ``size_mm``: the shipped snapshot where one fits, else the one cached in
+    ``work``, else assembled there; with the assembly's wall time [s] (None: not measured
+    here)."""
+    from flexparcel.consignments.assembly import assemble
+    from flexparcel.consignments.snapshot import load_snapshot, save_snapshot, shipped_snapshot
+    from flexparcel.consignments.userfile import resolve_consignment
+
+    build = resolve_consignment("KPBW", size_mm * 1e-3)
+    shipped = shipped_snapshot(build)
+    if shipped is not None:
+        return shipped[0], str(shipped[1])
+    cache = work / f"KPBW_{size_mm:g}mm.npz"
+    if cache.is_file():
+        snap = load_snapshot(cache)
+        if snap.build == build:
+            return snap, str(cache)
+    snap = assemble(build)
+    save_snapshot(snap, cache)
+    return snap, str(cache)
+
+
+def _kpbw_convergence(
+    quick: bool = False,
+    progress=None,
+    *,
+    sizes_mm: tuple[float, ...] = CONVERGENCE_SIZES_MM,
+    work: str | Path = "out/bench-kpbw-convergence",
+) -> dict:
+    """Bench case ``kpbw-convergence``: KP/BW's swing (1.4 s) and drops (0.3 s) with Table
+    6 at each element size of ``sizes_mm``, next to Table 7 and the real-world tests. Each
+    finished test is written to ``work/SIZEmm/TEST.json`` (atomically) and not run again:
+    an interrupted study resumes where it stopped. ``quick``: 0.05 s of each test (a check
+    that the pipeline runs; its responses are not reached)."""
+    from flexparcel.io.atomic import write_atomic
+    from flexparcel.scenarios.consignment_tests import TABLE6_VALUES
+    from flexparcel.scenarios.paper_reference import TEST_REFERENCES
+    from flexparcel.scenarios.registry import get_scenario
+
+    work = Path(work)
+    t_end = {"swing": 1.4, "drop-vertical": 0.3, "drop-horizontal": 0.3}
+    rows = []
+    for size in sizes_mm:
+        folder = work / f"{size:g}mm"
+        folder.mkdir(parents=True, exist_ok=True)
+        snap, source = _convergence_snapshot(size, work)
+        row: dict = {"element_size_mm": size, "snapshot": source, "tests": {}}
+        for test, t in t_end.items():
+            path = folder / f"{test}.json"
+            if path.is_file():
+                summary = json.loads(path.read_text())
+            else:
+                scenario = get_scenario(test)
+                result = scenario.run(snap, dict(TABLE6_VALUES), t_end=0.05 if quick else t,
+                                      progress=progress)  # fmt: skip
+                summary = scenario.summary(result)
+                write_atomic(path, json.dumps(summary, indent=2))
+            row["tests"][test] = {k: summary[k] for k in ("wall_s", "steps",
+                                  "newton_iterations", "simulated_s")}  # fmt: skip
+            for ref in TEST_REFERENCES:
+                if ref.test == test:
+                    value = summary.get(ref.response)
+                    row[f"{test}:{ref.response}"] = {
+                        "simulated": value, "table7": ref.table7, "real": ref.real,
+                        "rel_error_table7": None if value is None
+                        else (value - ref.table7) / ref.table7,
+                    }  # fmt: skip
+        rows.append(row)
+    walls = [t["wall_s"] for r in rows for t in r["tests"].values()]
+    return {
+        "case": "kpbw-convergence",
+        "description": "KP/BW swing and drops with Table 6 at several element sizes, next to "
+        "Table 7 (RecurDyn, 10 mm) and the real-world tests; rebound = the camera's clearance",
+        "rows": rows,
+        "simulated_s": sum(t["simulated_s"] for r in rows for t in r["tests"].values()),
+        "wall_s": sum(walls),
+        "dof_count": None,
+        "steps": sum(t["steps"] for r in rows for t in r["tests"].values()),
+        "newton_iterations": sum(
+            t["newton_iterations"] for r in rows for t in r["tests"].values()
+        ),  # fmt: skip
+        "speedup_vs_recurdyn": None,
+    }
+
+
 CASES: dict[str, Callable[..., dict]] = {
     "sheet-swing": _sheet_swing,
     "envelope-drop": _envelope_drop,
@@ -536,6 +625,7 @@ CASES: dict[str, Callable[..., dict]] = {
     "conveyor-scaling": _conveyor_scaling_case,
     "consignment-assembly": _consignment_assembly,
     "kpbw-tests": _kpbw_tests,
+    "kpbw-convergence": _kpbw_convergence,
 }
 DEFAULT_CASES = ("sheet-swing", "envelope-drop")
 """What ``flexparcel bench`` runs without names (the conveyor and consignment cases are long:

@@ -93,6 +93,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="NAME",
         help="conveyor-scaling: the copied consignment",
     )
+    g.add_argument(
+        "--sizes",
+        default="25,15,10,7",
+        metavar="MM,MM,...",
+        help="kpbw-convergence: element sizes [mm] (default 25,15,10,7); finished tests in "
+        "bench-kpbw-convergence/ next to --out are not run again",
+    )
     p.set_defaults(func=run)
 
 
@@ -108,6 +115,14 @@ def run(args: argparse.Namespace) -> int:
         ) from None
     if not counts or min(counts) < 1 or max(counts) > 200:
         raise ValueError(f"--scaling-counts must be in [1, 200], got {args.scaling_counts!r}")
+    try:
+        sizes = tuple(float(c) for c in args.sizes.split(","))
+    except ValueError:
+        raise ValueError(
+            f"--sizes must be numbers separated by commas, got {args.sizes!r}"
+        ) from None
+    if not sizes or min(sizes) < 1.0 or max(sizes) > 100.0:
+        raise ValueError(f"--sizes must be in [1, 100] mm, got {args.sizes!r}")
     if args.t_end is not None and not 0.0 < args.t_end <= 10.0:
         raise ValueError(f"--t-end must be in (0, 10] s, got {args.t_end:g}")
     if args.element_size is not None and not 1.0 <= args.element_size <= 100.0:
@@ -129,6 +144,10 @@ def run(args: argparse.Namespace) -> int:
         },
         "consignment-assembly": {"element_size_mm": args.element_size},
         "kpbw-tests": {"element_size_mm": args.element_size, "snapshot_dir": args.snapshot_dir},
+        "kpbw-convergence": {
+            "sizes_mm": sizes,
+            "work": Path(args.out).parent / "bench-kpbw-convergence",
+        },
         "conveyor-scaling": {
             **common,
             "counts": counts,
