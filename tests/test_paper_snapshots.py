@@ -64,3 +64,23 @@ def test_pb_film_holds_its_content(snapshots):
     assert not np.isin(c.content_nodes[corner], outside).any()
     z = snap.positions[:, 2]
     assert z[c.content_nodes].min() >= z[c.packaging].min()
+
+
+PAPER_MESH = Path(__file__).resolve().parents[1] / "data" / "paper-snapshots-10mm"
+
+
+@pytest.mark.parametrize("path", sorted(PAPER_MESH.glob("*.npz")), ids=lambda p: p.stem)
+def test_paper_mesh_snapshots_are_taken_by_the_commands(path):
+    # each snapshot at the paper's mesh is the preset at its own element size (10 mm, BW 5 mm),
+    # passed the assembly's rest and shape checks, and fits the mesh today's builder makes, so
+    # run / demo / bench take it (shipped_snapshot); a builder change fails here: assemble again
+    from flexparcel.consignments.snapshot import shipped_snapshot
+
+    snap = load_snapshot(path)
+    build = ConsignmentBuild.of(path.stem)
+    assert snap.build.element_size == build.element_size
+    shape = snap.info["shape"]
+    assert snap.info["at_rest"] and shape["failures"] == []
+    assert shape["outer_mm"][0] <= shape["bound_mm"][0]
+    found = shipped_snapshot(build)
+    assert found is not None and found[1] == path
