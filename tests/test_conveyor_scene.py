@@ -526,6 +526,12 @@ def test_conveyor_cli_rejects_bad_input_before_running(tmp_path, capsys):
     assert "--content-stiffness must be in [1, 10000] N/mm, got 20000" in _error(
         capsys, ["bench", "conveyor", "--content-stiffness", "2e4", *out]
     )
+    assert "--sizes must be in [1, 100] mm, got '0.5,10'" in _error(
+        capsys, ["bench", "kpbw-convergence", "--sizes", "0.5,10", *out]
+    )
+    assert "--scaling-counts must be integers separated by commas, got '1,x'" in _error(
+        capsys, ["bench", "conveyor-scaling", "--scaling-counts", "1,x", *out]
+    )
     bad = tmp_path / "bad.toml"
     bad.write_text("format_version = 1\n[belt]\nspeed_m_s = -1\n")
     err = _error(capsys, ["run", "conveyor", "--scene", str(bad), *out])

@@ -103,26 +103,25 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _number_list(option: str, text: str, kind, lo: float, hi: float, unit: str) -> tuple:
+    """``text``, numbers separated by commas, as a tuple of ``kind``; an error naming
+    ``option`` and its range otherwise."""
+    what = "integers" if kind is int else "numbers"
+    try:
+        values = tuple(kind(c) for c in text.split(","))
+    except ValueError:
+        raise ValueError(f"{option} must be {what} separated by commas, got {text!r}") from None
+    if not values or min(values) < lo or max(values) > hi:
+        raise ValueError(f"{option} must be in [{lo:g}, {hi:g}]{unit}, got {text!r}")
+    return values
+
+
 def run(args: argparse.Namespace) -> int:
     from flexparcel.bench import run_benchmarks
     from flexparcel.cli.progress import SimulationProgress
 
-    try:
-        counts = tuple(int(c) for c in args.scaling_counts.split(","))
-    except ValueError:
-        raise ValueError(
-            f"--scaling-counts must be integers separated by commas, got {args.scaling_counts!r}"
-        ) from None
-    if not counts or min(counts) < 1 or max(counts) > 200:
-        raise ValueError(f"--scaling-counts must be in [1, 200], got {args.scaling_counts!r}")
-    try:
-        sizes = tuple(float(c) for c in args.sizes.split(","))
-    except ValueError:
-        raise ValueError(
-            f"--sizes must be numbers separated by commas, got {args.sizes!r}"
-        ) from None
-    if not sizes or min(sizes) < 1.0 or max(sizes) > 100.0:
-        raise ValueError(f"--sizes must be in [1, 100] mm, got {args.sizes!r}")
+    counts = _number_list("--scaling-counts", args.scaling_counts, int, 1, 200, "")
+    sizes = _number_list("--sizes", args.sizes, float, 1.0, 100.0, " mm")
     if args.t_end is not None and not 0.0 < args.t_end <= 10.0:
         raise ValueError(f"--t-end must be in (0, 10] s, got {args.t_end:g}")
     if args.element_size is not None and not 1.0 <= args.element_size <= 100.0:
