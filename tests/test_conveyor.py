@@ -104,29 +104,6 @@ def test_the_belt_ends_at_its_edges():
     assert tilt[2] < -0.05
 
 
-def test_a_belt_transfer_hands_over_at_its_own_speed_and_its_gap_has_no_support():
-    # two belts: 1.0 m/s up to x = 1 m, a 0.3 m gap, 0.5 m/s from x = 1.3 m. A box on the
-    # second belt, dropped 2 mm, is taken to its speed (v / (mu g) = 0.1 s at mu = 0.5); one
-    # over the gap (0.2 m long, all its corners in the gap) falls freely
-    scene = ConveyorScene(belt_speed=1.0, transfer_x=1.0, transfer_gap=0.3, transfer_speed=0.5)
-    assert scene.belts() == ((-np.inf, 1.0, 1.0), (1.3, np.inf, 0.5))
-    b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
-    parts = add_conveyor(b, scene)
-    on, over = (b.add_rigid_body(BOX, (x, 0.0, 0.025 + 0.002)) for x in (1.6, 1.15))
-    for node in (on, over):
-        for belt in parts.belt_planes:
-            b.add_contact(node, belt, _law(0.5))
-    model = b.finalize()
-    assert np.allclose(model.plane_velocity[list(parts.belt_planes), 0], [1.0, 0.5])
-    r = fp.simulate(model, 0.2, dt_out=0.01)
-    assert r.velocities[-1, on, 0] == pytest.approx(0.5, abs=2e-3)
-    assert r.positions[-1, over, 2] == pytest.approx(0.027 - 0.5 * G * 0.2**2, abs=1e-4)
-    with pytest.raises(ValueError, match=r"transfer_x .*in \(0, belt_length = 3\) m"):
-        ConveyorScene(transfer_x=3.5)
-    with pytest.raises(ValueError, match=r"transfer_gap .*in \[0, 0.5\] m"):
-        ConveyorScene(transfer_x=1.0, transfer_gap=0.7)
-
-
 def _box_against_deflector(theta_deg, mu_f, mu_b, t_end, stick=False, options=None):
     """The 0.2 x 0.15 box at rest on the belt, its long side flat against the (only)
     deflector near its root. The box cannot touch the deflector's triangle mesh (only shell

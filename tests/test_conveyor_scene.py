@@ -150,14 +150,6 @@ def test_scene_file_default_queue_takes_the_paper_conveyor(tmp_path):
     assert s.conveyor == paper_conveyor(2.0, 45.0)
 
 
-def test_scene_file_belt_transfer(tmp_path):
-    s = load_scene_file(_scene(tmp_path, HEAD + 'consignments = ["KPBW"]\n[belt]\n'
-                               "transfer_x_m = 2.0\ntransfer_gap_m = 0.05\n"
-                               "transfer_speed_m_s = 1.2\n"))  # fmt: skip
-    first, second = s.conveyor.belts()
-    assert first[1:] == (2.0, 1.6) and second == (2.05, np.inf, 1.2)
-
-
 @pytest.mark.parametrize(
     ("text", "message"),
     [
@@ -194,10 +186,6 @@ def test_scene_file_belt_transfer(tmp_path):
             r"consignment\[1\].name 'KP' is used by consignment\[0\]",
         ),  # fmt: skip
         (HEAD + 't_end_s = 0\nconsignments = ["KP"]\n', r"t_end_s must be in \[0.001, 10\] s"),
-        (
-            HEAD + 'consignments = ["KP"]\n[belt]\ntransfer_x_m = 1.0\ntransfer_gap_m = 0.9\n',
-            r"transfer_gap_m must be in \[0, 0.5\] m, got 0.9",
-        ),  # fmt: skip
     ],
 )
 def test_bad_scene_files_name_the_file_and_key(tmp_path, text, message):

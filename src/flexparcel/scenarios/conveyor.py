@@ -180,10 +180,6 @@ class ConveyorScene:
             over the edge goes round its free end (measured in the paper's scene, KP at the
             second deflector), which a real deflector fixed to the frame does not allow.
         side_guides: add unbounded guide planes along both belt edges.
-        transfer_x: a belt transfer: the first belt ends at this x [m] in (0, belt_length),
-            a second belt starts ``transfer_gap`` [m] in [0, 0.5] further on, running at
-            ``transfer_speed`` [m/s] in [0, 10] (None: the first belt's speed). None: one
-            belt. Packaging over the gap has no support.
     """
 
     belt_length: float = 3.0
@@ -196,9 +192,6 @@ class ConveyorScene:
     deflector_thickness: float = 0.002
     deflector_overhang: float = 0.1
     side_guides: bool = False
-    transfer_x: float | None = None
-    transfer_gap: float = 0.0
-    transfer_speed: float | None = None
 
     def __post_init__(self) -> None:
         ranges = {
@@ -238,34 +231,6 @@ class ConveyorScene:
             if k and not x > xs[k - 1]:
                 raise _bad(f"deflector_x[{k}]", f"> deflector_x[{k - 1}] = {xs[k - 1]:g} m", x)
         object.__setattr__(self, "deflector_x", xs)
-        self._check_transfer()
-
-    def _check_transfer(self) -> None:
-        """The belt transfer's fields (see the class docstring)."""
-        gap = _number("transfer_gap", self.transfer_gap)
-        if not 0.0 <= gap <= 0.5:
-            raise _bad("transfer_gap", "in [0, 0.5] m", gap)
-        object.__setattr__(self, "transfer_gap", gap)
-        if self.transfer_speed is not None:
-            v = _number("transfer_speed", self.transfer_speed)
-            if not 0.0 <= v <= 10.0:
-                raise _bad("transfer_speed", "in [0, 10] m/s", v)
-            object.__setattr__(self, "transfer_speed", v)
-        if self.transfer_x is None:
-            return
-        x = _number("transfer_x", self.transfer_x)
-        if not 0.0 < x < self.belt_length:
-            raise _bad("transfer_x", f"in (0, belt_length = {self.belt_length:g}) m", x)
-        object.__setattr__(self, "transfer_x", x)
-
-    def belts(self) -> tuple[tuple[float, float, float], ...]:
-        """Each belt's (x start, x end, speed) [m, m, m/s]: one belt unbounded along x, or
-        the two of a transfer."""
-        if self.transfer_x is None:
-            return ((-math.inf, math.inf, self.belt_speed),)
-        second = self.belt_speed if self.transfer_speed is None else self.transfer_speed
-        return ((-math.inf, self.transfer_x, self.belt_speed),
-                (self.transfer_x + self.transfer_gap, math.inf, second))  # fmt: skip
 
     @property
     def deflector_reach_x(self) -> float:
@@ -303,9 +268,8 @@ class ConveyorParts:
     """What :func:`add_conveyor` added to a builder."""
 
     scene: ConveyorScene
-    belt_planes: tuple[int, ...]
-    """Plane ids of the belts, upstream first: one, or two at a transfer (for
-    ``add_contact`` / ``add_edge_contact``)."""
+    belt_plane: int
+    """Plane id of the belt (for ``add_contact`` / ``add_edge_contact``)."""
     deflector_bodies: tuple[int, ...]
     """Node id of each deflector's fixed rigid body. Its RoundedBox is axis-aligned and only
     carries the mesh: never use it in ``add_body_contact``."""
@@ -321,11 +285,6 @@ class ConveyorParts:
     beyond the belt edge, bottom to top, shape (m + 1,) each."""
     side_guide_planes: tuple[int, ...] = field(default=())
     """Plane ids of the guides at y = +width/2 and y = -width/2, or () if none."""
-
-    @property
-    def belt_plane(self) -> int:
-        """Plane id of the (first) belt."""
-        return self.belt_planes[0]
 
     def deflector_contact_thickness(self, shell_half_thickness: float) -> float:
         """Contact thickness [m] of shell nodes of half thickness ``shell_half_thickness``
@@ -377,7 +336,7 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
     :class:`ConveyorScene`) to ``builder``; returns their ids and geometry.
 
     Contact pairs are left to the caller, who knows the consignments and their laws:
-    ``builder.add_contact(nodes, plane, law, radius=t / 2)`` for each of ``parts.belt_planes``,
+    ``builder.add_contact(nodes, parts.belt_plane, law, radius=t / 2)`` for the belt,
     ``add_deflector_contact(builder, parts, nodes, law, shell_half_thickness=t / 2)`` for a
     shell mesh (thickness t) against the deflectors (their faces and tip edges).
     """
@@ -386,14 +345,9 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
         raise TypeError(f"add_conveyor: scene must be a ConveyorScene, got {type(scene)}")
     half = 0.5 * scene.belt_width
     # the belt has its width: packaging beyond its edges hangs or falls (along x it is
-    # unbounded, or ends at a transfer: the responses report when a consignment passes
-    # belt_length)
-    belts = tuple(
-        builder.add_plane(
-            (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (v, 0.0, 0.0), extent=(x0, x1, -half, half)
-        )  # fmt: skip
-        for x0, x1, v in scene.belts()
-    )
+    # unbounded: the responses report when a consignment passes belt_length)
+    belt = builder.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (scene.belt_speed, 0.0, 0.0),
+                             extent=(-np.inf, np.inf, -half, half))  # fmt: skip
     bodies, vertices, tips, ends = [], [], [], []
     geometry = scene.deflectors()
     for g in geometry:
@@ -418,7 +372,7 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
         )
     return ConveyorParts(
         scene=scene,
-        belt_planes=belts,
+        belt_plane=belt,
         deflector_bodies=tuple(bodies),
         deflector_vertices=tuple(vertices),
         deflectors=geometry,

@@ -436,9 +436,7 @@ class SceneFile:
 _TOP_KEYS = {"format_version", "t_end_s", "element_size_mm", "gap_above_belt_m", "belt",
              "deflectors", "consignments", "consignment", "start_speed_m_s"}  # fmt: skip
 _BELT_KEYS = {"length_m": "belt_length", "width_m": "belt_width", "speed_m_s": "belt_speed",
-              "side_guides": "side_guides", "transfer_x_m": "transfer_x",
-              "transfer_gap_m": "transfer_gap",
-              "transfer_speed_m_s": "transfer_speed"}  # fmt: skip
+              "side_guides": "side_guides"}  # fmt: skip
 _DEFLECTOR_KEYS = {"angle_deg": "deflector_angle_deg", "x_m": "deflector_x",
                    "centre_gap_m": "centre_gap", "height_m": "deflector_height",
                    "thickness_m": "deflector_thickness",
@@ -673,8 +671,7 @@ def build_conveyor_model(
         lb = with_friction(ground, surface, BELT, friction_table)
         ld = with_friction(ground, surface, DEFLECTOR, friction_table)
         laws[p.name] = {"belt": lb, "deflector": ld}
-        for belt in parts.belt_planes:  # packaging, and content as a backstop
-            add_ground_contact(b, c, belt, lb)
+        add_ground_contact(b, c, parts.belt_plane, lb)  # packaging, and content as a backstop
         add_deflector_contact(b, parts, c.packaging, ld, shell_half_thickness=c.contact_radius)
     pp_law = replace(default_packaging_content_law(), mu_static=mu, mu_dynamic=mu)
     names = [p.name for p in layout.placements]
