@@ -403,7 +403,6 @@ PLANE_N = rotation_exp(np.array([0.2, -0.1, 0.0])) @ np.array([0.0, 0.0, 1.0])
 PLANE_P = np.array([0.0, 0.0, 0.01])
 BELT = np.cross(PLANE_N, np.array([0.0, 1.0, 0.0]))
 BELT *= 0.5 / np.linalg.norm(BELT)  # 0.5 m/s in the plane
-UNBOUNDED = np.array([-np.inf, np.inf, -np.inf, np.inf])  # the plane's extent
 R_EDGE = 0.15e-3
 SAMPLES = 3
 # a station's area: a 10 mm edge's third (10 mm / SAMPLES) times the default 10 mm strip width,
@@ -420,7 +419,7 @@ def _edge_run(law, pos, vel):
     ec = np.zeros((1, 6, 6))
     dofs = np.zeros((1, 6), dtype=np.int64)
     nc = edge_plane_forces(
-        np.array([[0, 1]]), PLANE_P, PLANE_N, BELT, UNBOUNDED, R_EDGE, SAMPLES, law.packed(), ACT,
+        np.array([[0, 1]]), PLANE_P, PLANE_N, BELT, R_EDGE, SAMPLES, law.packed(), ACT,
         np.array([STATION]), pos, vel, f, ek, ec, dofs, np.ones(2), 1e9, np.zeros(1),
     )[0]  # fmt: skip
     assert list(dofs[0]) == [0, 1, 2, 6, 7, 8]

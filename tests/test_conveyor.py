@@ -83,27 +83,6 @@ def test_box_dropped_on_the_conveyor_belt_reaches_belt_speed_at_v_over_mu_g():
     assert np.abs(r.velocities[:, node, 1]).max() < 1e-6
 
 
-def test_the_belt_ends_at_its_edges():
-    # the belt is as wide as the scene says (0.6 m): a box beside it (all its corners beyond
-    # y = 0.3 m) falls past the belt surface, one on it rests there, and a box over the edge
-    # tips down on the side beyond it (only its corners over the belt carry it)
-    b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
-    parts = add_conveyor(b, ConveyorScene(belt_speed=0.1))
-    on, off, edge = (b.add_rigid_body(BOX, (0.3, y, 0.025 + 0.002)) for y in (0.0, 0.5, 0.3))
-    for node in (on, off, edge):
-        b.add_contact(node, parts.belt_plane, _law(0.5))
-    model = b.finalize()
-    assert list(model.plane_extent[parts.belt_plane]) == [-np.inf, np.inf, -0.3, 0.3]
-    r = fp.simulate(model, 0.1, dt_out=0.01)
-    z = r.positions[-1, :, 2]
-    assert z[on] == pytest.approx(0.025, abs=1e-3)  # resting on the belt
-    # free fall from 27 mm: 27 - g (0.1 s)^2 / 2 = -22 mm
-    assert z[off] == pytest.approx(0.027 - 0.5 * G * 0.1**2, abs=1e-4)
-    # the edge box: held up on its inner side, its outer side dropping (roll about x)
-    tilt = rotation_exp(r.rotation_vectors[-1, edge]) @ np.array([0.0, 1.0, 0.0])
-    assert tilt[2] < -0.05
-
-
 def _box_against_deflector(theta_deg, mu_f, mu_b, t_end, stick=False, options=None):
     """The 0.2 x 0.15 box at rest on the belt, its long side flat against the (only)
     deflector near its root. The box cannot touch the deflector's triangle mesh (only shell

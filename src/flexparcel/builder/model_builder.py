@@ -224,13 +224,9 @@ class ModelBuilder:
         point: tuple[float, float, float],
         normal: tuple[float, float, float],
         surface_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0),
-        extent: tuple[float, float, float, float] | None = None,
     ) -> int:
         """Add a fixed rigid plane through ``point`` [m] with ``normal`` pointing out of its
-        solid side; ``surface_velocity`` [m/s] (tangential) makes it a belt. ``extent``
-        (xmin, xmax, ymin, ymax) [m]: where the plane is, in world x and y (a belt of finite
-        width; +-inf allowed); a contact point outside it does not touch the plane. None:
-        unbounded. Returns its id."""
+        solid side; ``surface_velocity`` [m/s] (tangential) makes it a belt. Returns its id."""
         p = np.asarray(point, dtype=float)
         nrm = np.asarray(normal, dtype=float)
         vel = np.asarray(surface_velocity, dtype=float)
@@ -243,13 +239,7 @@ class ModelBuilder:
         nrm = nrm / length
         if abs(vel @ nrm) > 1e-12 * max(1.0, np.linalg.norm(vel)):
             raise ValueError("add_plane: surface_velocity must be tangential (normal . v = 0)")
-        ext = np.array([-np.inf, np.inf, -np.inf, np.inf] if extent is None else extent, float)
-        if ext.shape != (4,) or np.isnan(ext).any() or ext[0] >= ext[1] or ext[2] >= ext[3]:
-            raise ValueError(
-                "add_plane: extent must be (xmin, xmax, ymin, ymax) with xmin < xmax and "
-                f"ymin < ymax [m], got {extent!r}"
-            )
-        self._planes.append((p, nrm, vel, ext))
+        self._planes.append((p, nrm, vel))
         return len(self._planes) - 1
 
     def add_contact(
@@ -754,7 +744,6 @@ class ModelBuilder:
             plane_point=np.array([p[0] for p in self._planes]).reshape(-1, 3),
             plane_normal=np.array([p[1] for p in self._planes]).reshape(-1, 3),
             plane_velocity=np.array([p[2] for p in self._planes]).reshape(-1, 3),
-            plane_extent=np.array([p[3] for p in self._planes]).reshape(-1, 4),
             contact_laws=(
                 np.array([law.packed() for law in laws]) if laws else np.zeros((0, PACKED_SIZE))
             ),

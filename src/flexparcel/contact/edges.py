@@ -27,7 +27,6 @@ def edge_plane_forces(
     plane_point,
     plane_normal,
     plane_velocity,
-    plane_extent,
     radius,
     samples,
     law,
@@ -43,8 +42,7 @@ def edge_plane_forces(
     v_impact,
     out_w2,
 ):
-    """Forces of all edges (E, 2) against one plane (its extent (4,) [m], see
-    :func:`flexparcel.contact.planes.plane_contact_forces`), each station of edge e carrying the
+    """Forces of all edges (E, 2) against one plane, each station of edge e carrying the
     area ``station_area[e]`` [m^2] times the schedule factor ``act``; blocks (E, 6, 6) of
     d[f_i, f_j] / d[x_i, x_j] (``out_k``) and / d[v_i, v_j] (``out_c``), DOF numbers (E, 6).
     Returns (points in contact, deepest penetration [m], worst penetration / max)."""
@@ -69,14 +67,6 @@ def edge_plane_forces(
                 + n[2] * (p[2] - plane_point[2])
             )
             if s <= 0.0:
-                continue
-            cx, cy = p[0] - radius * n[0], p[1] - radius * n[1]  # beyond a bounded plane
-            if (
-                cx < plane_extent[0]
-                or cx > plane_extent[1]
-                or cy < plane_extent[2]
-                or cy > plane_extent[3]
-            ):
                 continue
             n_contact += 1
             deepest = max(deepest, s)
@@ -128,8 +118,7 @@ class EdgePlaneSet(ContactSet):
         m, k = ctx.model, self.plane
         ek, ec, dofs = pair_blocks(self.edges.shape[0], 6)
         n_contact, depth, ratio = edge_plane_forces(
-            self.edges, m.plane_point[k], m.plane_normal[k], m.plane_velocity[k], m.plane_extent[k],
-            self.radius,
+            self.edges, m.plane_point[k], m.plane_normal[k], m.plane_velocity[k], self.radius,
             self.samples, ctx.laws[self.law_index], ctx.factors[self.schedule_index],
             self.station_area, state.positions, state.velocities, out.forces, ek, ec, dofs,
             ctx.node_mass, ctx.impact_speed, ctx.w2,

@@ -12,9 +12,6 @@ normal ``n`` through ``p0`` (pointing out of the solid side):
     its velocity vc = v + w x a - v_plane   (v_plane: the surface velocity of a belt)
     rate         s' = -n . vc,   slip  vt = vc - (n . vc) n
 
-A plane may be bounded (``ModelBuilder.add_plane(..., extent=...)``, a belt of finite width):
-a point whose contact point ``x + a`` lies outside its x-y extent has no contact with it.
-
 The law (:mod:`flexparcel.contact.law`, paper eqs. 1-10, per unit area) gives F_N(s, s') and the
 friction F_T(vt, F_N) per unit area; each point carries its tributary area ``A`` [m^2] (a shell
 node's share of the surface around it, a box corner's stated area), and the point force
@@ -55,7 +52,6 @@ def plane_contact_forces(
     plane_point,
     plane_normal,
     plane_velocity,
-    plane_extent,
     laws,
     pos,
     rot,
@@ -76,9 +72,8 @@ def plane_contact_forces(
 
     Args: point arrays (P,) / (P, 3); ``cp_active`` (P,) schedule factors in [0, 1];
     ``cp_area`` (P,) tributary areas [m^2] (the law's per-area values times these);
-    planes (k, 3) and their extents (k, 4) [m] (xmin, xmax, ymin, ymax of the contact point
-    in world axes; +-inf for an unbounded plane); ``laws`` (L, PACKED_SIZE); state ``pos``
-    (n, 3), ``rot`` (n, 3, 3), ``vel`` (n, 6).
+    planes (k, 3); ``laws`` (L, PACKED_SIZE); state ``pos`` (n, 3), ``rot`` (n, 3, 3),
+    ``vel`` (n, 6).
     Outputs (accumulated): ``out_f`` (n, 6) forces [N, N m]; ``out_dq`` (P, 6, 6) and
     ``out_dv`` (P, 6, 6) derivatives per point (zero for points not in contact).
     Returns (number of points in contact, deepest penetration [m], its point, worst ratio of
@@ -105,13 +100,6 @@ def plane_contact_forces(
             + n[2] * (x[2] + rho[2] - plane_point[pl, 2])
         )
         if s <= 0.0:
-            continue
-        # a bounded plane (a belt of finite width): no contact where the contact point
-        # x + rho - r n lies beyond its edge
-        ext = plane_extent[pl]
-        cx = x[0] + rho[0] - cp_radius[q] * n[0]
-        cy = x[1] + rho[1] - cp_radius[q] * n[1]
-        if cx < ext[0] or cx > ext[1] or cy < ext[2] or cy > ext[3]:
             continue
         n_contact += 1
         if s > deepest:
@@ -227,8 +215,8 @@ class PlanePointSet(ContactSet):
         n_contact, depth, point, ratio = plane_contact_forces(
             self.node, self.offset, self.radius, self._plane_of, self._law_of,
             np.full(p, ctx.factors[self.schedule_index]), self.area, m.plane_point, m.plane_normal,
-            m.plane_velocity, m.plane_extent, ctx.laws[self.law_index : self.law_index + 1],
-            state.positions, state.rotations, state.velocities, out.forces, dq, dv, ctx.node_mass,
+            m.plane_velocity, ctx.laws[self.law_index : self.law_index + 1], state.positions,
+            state.rotations, state.velocities, out.forces, dq, dv, ctx.node_mass,
             ctx.impact_speed, ctx.w2, self.u_el, self.u_el_trial, ctx.step,
             ctx.start.positions, ctx.start.rotations,
         )  # fmt: skip

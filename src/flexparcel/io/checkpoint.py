@@ -41,8 +41,8 @@ CHECKPOINT_VERSION = 2  # 2: contact history keyed by contact set
 # groups and contact sets add their own (fingerprint_arrays)
 _MODEL_FIELDS = (
     "positions0", "mass", "fixed", "gravity", "mass_damping", "rigid_nodes", "rigid_inertia",
-    "plane_point", "plane_normal", "plane_velocity", "plane_extent", "contact_laws",
-    "prescribed_nodes", "prescribed_velocity",
+    "plane_point", "plane_normal", "plane_velocity", "contact_laws", "prescribed_nodes",
+    "prescribed_velocity",
 )  # fmt: skip
 
 

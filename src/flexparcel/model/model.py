@@ -96,9 +96,6 @@ class Model:
     """Unit normal of each plane, out of its solid side, shape (k, 3)."""
     plane_velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """Tangential surface velocity of each plane (a belt) [m/s], shape (k, 3)."""
-    plane_extent: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
-    """Where each plane is (xmin, xmax, ymin, ymax of the contact point in world axes) [m],
-    shape (k, 4); +-inf: unbounded."""
     contact_laws: np.ndarray = field(default_factory=lambda: np.zeros((0, PACKED_LAW_SIZE)))
     """Packed contact laws (see ContactLaw.packed), shape (L, PACKED_LAW_SIZE)."""
     contact_schedules: list = field(default_factory=list)

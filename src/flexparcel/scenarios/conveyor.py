@@ -11,10 +11,8 @@ the next from y < 0, and so on.
 
 Modelling choices (they differ from the paper, which uses a shell belt on driven rollers):
 
-* the belt is a rigid plane with a prescribed surface velocity (``ModelBuilder.add_plane``),
-  bounded at its edges |y| = ``belt_width`` / 2: a contact point beyond an edge does not touch
-  it, so packaging hanging over the edge hangs, and a consignment pushed off falls. Along x it
-  is unbounded: nothing falls off at x = ``belt_length``; the responses
+* the belt is a rigid plane with a prescribed surface velocity (``ModelBuilder.add_plane``).
+  The plane is unbounded: nothing falls off at x = ``belt_length``; the responses
   (:mod:`flexparcel.scenarios.conveyor_responses`) report when a consignment passes it.
 * each deflector is a fixed rigid body carrying a triangle mesh of its mid-plane, half the
   sheet thickness behind its upstream face (a vertical rectangle); shell nodes touch it with
@@ -343,11 +341,7 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
     scene = scene if scene is not None else ConveyorScene()
     if not isinstance(scene, ConveyorScene):
         raise TypeError(f"add_conveyor: scene must be a ConveyorScene, got {type(scene)}")
-    half = 0.5 * scene.belt_width
-    # the belt has its width: packaging beyond its edges hangs or falls (along x it is
-    # unbounded: the responses report when a consignment passes belt_length)
-    belt = builder.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (scene.belt_speed, 0.0, 0.0),
-                             extent=(-np.inf, np.inf, -half, half))  # fmt: skip
+    belt = builder.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (scene.belt_speed, 0.0, 0.0))
     bodies, vertices, tips, ends = [], [], [], []
     geometry = scene.deflectors()
     for g in geometry:
@@ -366,6 +360,7 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
         ends.append(vertices[-1][end])
     guides: tuple[int, ...] = ()
     if scene.side_guides:
+        half = 0.5 * scene.belt_width
         guides = (
             builder.add_plane((0.0, half, 0.0), (0.0, -1.0, 0.0)),
             builder.add_plane((0.0, -half, 0.0), (0.0, 1.0, 0.0)),
