@@ -221,8 +221,8 @@ def test_demo_writes_the_html_report_and_ends_with_its_path(tmp_path, monkeypatc
 
     info = {"opening_time_s": 0.05, "end_time_s": 0.2, "kinetic_energy_J": 1e-7, "steps": 10,
             "wall_s": 3.0, "packaging_mass_kg": 0.016, "content_mass_kg": 0.124}  # fmt: skip
-    monkeypatch.setattr(snapshots, "assemble_job",
-                        lambda *a, **k: (SimpleNamespace(info=info), None))  # fmt: skip
+    monkeypatch.setattr(snapshots, "assemble_job", lambda build, out, **k: (
+        SimpleNamespace(info=info), SimpleNamespace(snapshot=out / "snapshot.npz")))  # fmt: skip
 
     def run_tests(snap, out, mode, progress):
         swing = _swing_folder(out / "swing", 64.0, None)
