@@ -913,19 +913,12 @@ def conveyor_options() -> IntegratorOptions:
     (``friction_tangent="stick"``) is not used: it halved the first 0.01 s (55 s) but took
     776 s against 703 s over the first 0.05 s (839 steps of 6.5 Newton iterations against
     2,098 of 2.2), its linear convergence using up the Newton tolerance (BW's centroid
-    0.7 mm apart at 0.05 s).
-
-    The linear solver is the default's (``"auto"``: CHOLMOD with the ``fast`` extra, one
-    supernodal factorisation of the whole scene, the symbolic analysis reused): on the four
-    at 25 mm with Table 6's content contact (649 N/mm, per area), first 0.02 s from the
-    shipped 25 mm snapshots, one model, 2 cores shared with another run: 415 s (991 steps,
-    2,853 Newton iterations; factorisation 87 s, solves 82 s) against 596 s for the
-    single-precision block SuperLU (1,022 steps, 2,936 iterations; factorisation 255 s,
-    solves 49 s)."""
+    0.7 mm apart at 0.05 s)."""
     return replace(
         consignment_options(),
         newton_relaxation=False,
         newton_cap_growth=1.02,
+        linear_solver="superlu-blocks-mixed",
     )
 
 
