@@ -69,15 +69,21 @@ def test_pb_film_holds_its_content(snapshots):
 PAPER_MESH = Path(__file__).resolve().parents[1] / "data" / "paper-snapshots-10mm"
 
 
-@pytest.mark.parametrize("path", sorted(PAPER_MESH.glob("*.npz")), ids=lambda p: p.stem)
-def test_paper_mesh_snapshots_are_taken_by_the_commands(path):
-    # each snapshot at the paper's mesh is the preset at its own element size (10 mm, BW 5 mm),
-    # passed the assembly's rest and shape checks, and fits the mesh today's builder makes, so
-    # run / demo / bench take it (shipped_snapshot); a builder change fails here: assemble again
+@pytest.mark.parametrize(
+    ("path", "element_size"),
+    [(p, None) for p in sorted(PAPER_MESH.glob("*.npz"))]
+    + [(DATA / f"{k}.npz", 0.025) for k in KEYS],
+    ids=lambda v: f"{v.parent.name[-4:]}-{v.stem}" if isinstance(v, Path) else "",
+)
+def test_shipped_snapshots_are_taken_by_the_commands(path, element_size):
+    # each shipped snapshot is the preset at its element size (the paper's: 10 mm, BW 5 mm; or
+    # the 25 mm low-fidelity level), passed the assembly's rest and shape checks, and fits the
+    # mesh today's builder makes, so run / demo / bench / the conveyor take it
+    # (shipped_snapshot); a builder change fails here: assemble again
     from flexparcel.consignments.snapshot import shipped_snapshot
 
     snap = load_snapshot(path)
-    build = ConsignmentBuild.of(path.stem)
+    build = ConsignmentBuild.of(path.stem, element_size=element_size)
     assert snap.build.element_size == build.element_size
     shape = snap.info["shape"]
     assert snap.info["at_rest"] and shape["failures"] == []
