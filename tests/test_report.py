@@ -218,11 +218,12 @@ def test_demo_writes_the_html_report_and_ends_with_its_path(tmp_path, monkeypatc
     # the demo's runs replaced by finished folders with known numbers (the runs themselves
     # take minutes): the report pages and the last line printed are what is checked
     from flexparcel.cli import demo_cmd, main, snapshots
+    from flexparcel.consignments.snapshot import load_snapshot
 
-    info = {"opening_time_s": 0.05, "end_time_s": 0.2, "kinetic_energy_J": 1e-7, "steps": 10,
-            "wall_s": 3.0, "packaging_mass_kg": 0.016, "content_mass_kg": 0.124}  # fmt: skip
-    monkeypatch.setattr(snapshots, "assemble_job", lambda build, out, **k: (
-        SimpleNamespace(info=info), SimpleNamespace(snapshot=out / "snapshot.npz")))  # fmt: skip
+    def no_assembly(build, out, **kwargs):
+        raise AssertionError("demo --quick assembled instead of taking the shipped snapshot")
+
+    monkeypatch.setattr(snapshots, "assemble_job", no_assembly)
 
     def run_tests(snap, out, mode, progress):
         swing = _swing_folder(out / "swing", 64.0, None)
@@ -240,7 +241,14 @@ def test_demo_writes_the_html_report_and_ends_with_its_path(tmp_path, monkeypatc
     assert '<iframe src="swing/view.html"' in text and 'href="swing/report.html"' in text
     first = re.search(r"<tr><td>first swing</td>(.*?)</tr>", text).group(1)
     assert re.findall(r'<td class="num">(.*?)</td>', first) == ["64.0", "128", "0.50", "127"]
-    assert "assembled.png: not written by this run" in text
+    # --quick is KP/BW at 25 mm, whose shipped snapshot is taken (data/paper-snapshots-25mm):
+    # the demo says so, and the report shows that assembly's picture and its step count
+    shipped = Path(__file__).resolve().parents[1] / "data" / "paper-snapshots-25mm" / "KPBW.npz"
+    assert f"demo: KPBW: using the shipped snapshot {shipped}" in "\n".join(lines)
+    assert (out / "assembly" / "assembled.png").is_file()
+    assert "assembled.png: not written by this run" not in text
+    steps = load_snapshot(shipped).info["steps"]
+    assert f"{steps} steps" in text
     md = (out / "report.md").read_text()
     assert "| second swing [mm] | not reached in this run | 27 | – | 32 |" in md
     assert "| vertical drop rebound [mm] | – | 6.2 | – | 7 |" in md
