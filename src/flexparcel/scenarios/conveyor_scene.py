@@ -909,11 +909,17 @@ def conveyor_options() -> IntegratorOptions:
     (``"superlu-blocks-mixed"``): first 0.01 s of the four (PB with its two-way content
     contact, content 64.9 N/mm) 27.0 s against 28.9 s in double, factorisation 16.5 s against
     20.0 s, the same steps, Newton iterations and centroids. The stick tangent for slipping
-    contacts
-    (``friction_tangent="stick"``) is not used: it halved the first 0.01 s (55 s) but took
-    776 s against 703 s over the first 0.05 s (839 steps of 6.5 Newton iterations against
-    2,098 of 2.2), its linear convergence using up the Newton tolerance (BW's centroid
-    0.7 mm apart at 0.05 s)."""
+    contacts (``friction_tangent="stick"``) is not used: it halved the first 0.01 s (55 s) but
+    took 776 s against 703 s over the first 0.05 s (839 steps of 6.5 Newton iterations
+    against 2,098 of 2.2), its linear convergence using up the Newton tolerance (BW's centroid
+    0.7 mm apart at 0.05 s).
+
+    Open choice: CHOLMOD (``linear_solver="auto"`` with the ``fast`` extra, one supernodal
+    factorisation of the whole scene) was faster on the four at 25 mm with Table 6's content
+    contact from the shipped snapshots, first 0.02 s beside another run: 415 s (991 steps,
+    2,853 iterations) against 596 s (1,022 steps, 2,936 iterations). As the default it made
+    the conveyor tests' short runs slower (the whole suite 960 s), so the block SuperLU
+    stays the default until both are measured on the whole 2 s scene."""
     return replace(
         consignment_options(),
         newton_relaxation=False,
