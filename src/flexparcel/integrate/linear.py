@@ -429,6 +429,12 @@ class CholmodSolver(LinearSolver):
     def _new_pattern(self, a: sp.csr_matrix) -> None:
         """Hold the union of the current pattern and a's (a alone if that grew past
         :data:`PATTERN_SLACK` times a's entries); its symbolic analysis is redone."""
+        # a contact block with a one-way coupling (friction, the box moment's arm) can hold an
+        # exact zero where its transpose does not, and scipy's sparse sums drop such zeros: the
+        # held pattern is made structurally symmetric (a's and a^T's entries), else Cholesky
+        # would fall back to SuperLU for every such matrix. Measured on the KP/BW swing at
+        # 10 mm: all 125 factorisations of its first 20 steps fell back, 6,018 DOF.
+        a = _pattern_union(a, a.T.tocsr())
         p = self._pattern
         if p is not None and p.indptr.size == a.shape[0] + 1:
             held = sp.csr_matrix((np.ones(p.indices.size), p.indices, p.indptr), shape=a.shape)
