@@ -324,6 +324,9 @@ CASES: list[Case] = [
          lambda tmp: _raises(_negative_t_end)),
     Case("`IntegratorOptions(rho_inf=1.5)`", r"rho_inf must be in \[0, 1\]",
          lambda tmp: _raises(fp.IntegratorOptions, rho_inf=1.5)),
+    Case("`JawClosing(hold_time=0)` (the swing clamp's closing)",
+         r"JawClosing.hold_time must be in \(0, 1\] s, got 0",
+         lambda tmp: _raises(_jaws, hold_time=0)),
     Case("`IntegratorOptions(error_estimate='rms')`",
          r"error_estimate must be 'full', 'smooth' or 'balanced', got 'rms'",
          lambda tmp: _raises(fp.IntegratorOptions, error_estimate="rms")),
@@ -332,6 +335,12 @@ CASES: list[Case] = [
     Case("`mesh.rectangle(0, 1, 2, 2)`", r"length must be > 0 m",
          lambda tmp: _raises(fp.mesh.rectangle, 0.0, 1.0, 2, 2)),
 ]  # fmt: skip
+
+
+def _jaws(**kw):
+    from flexparcel.scenarios.swing_jaws import JawClosing
+
+    return JawClosing(**kw)
 
 
 def _bad_quad_ids():

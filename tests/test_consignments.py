@@ -328,6 +328,39 @@ def test_swing_start_is_deterministic(small):
     assert 0.05e-3 < drop < 0.5 * 9.81 * 0.02**2
 
 
+def test_jaws_close_the_clamp_flat_and_leave_the_consignment_at_rest(small):
+    # the paper's clamp presses both layers together over 2 cm; the settled envelope has them
+    # apart there, so the swing closes the clamp as flat jaws before the release
+    from flexparcel.consignments.snapshot import place_snapshot
+    from flexparcel.scenarios.consignment_tests import parse_assignments, swing_model
+    from flexparcel.scenarios.swing_jaws import jaw_targets
+
+    p = parse_assignments(None)
+    tm = swing_model(small, p)
+    c = tm.consignment
+    x = small.positions[c.packaging, 0]
+    clamped = c.packaging[x <= x.min() + 0.020 + 1e-9]
+    settled = place_snapshot(small, tm.model).positions
+    target, z_mid = jaw_targets(c, clamped, settled)
+    t = 2.0 * c.contact_radius
+    # the open clamp spans several film thicknesses in height, the jaws one
+    assert np.ptp(settled[clamped, 2]) > 5 * t
+    np.testing.assert_allclose(tm.state0.positions[clamped], target, rtol=0, atol=1e-12)
+    z = tm.state0.positions[clamped, 2]
+    assert np.isclose(z.max() - z.min(), t) and np.isclose(z.max() + z.min(), 2 * z_mid)
+    assert np.allclose(tm.state0.rotations[clamped], np.eye(3), atol=1e-12)
+    # x and y stay: the jaws press, they do not pull
+    np.testing.assert_array_equal(tm.state0.positions[clamped, :2], settled[clamped, :2])
+    # at rest when the hold ends (measured 1.3e-8 J, against the 1.5e-4 J that a 1 mm drop
+    # of the example's 15 g packaging end would give up), and released from rest
+    assert tm.preparation["jaw_closing"]["kinetic_end_j"] < 1e-6
+    assert not tm.state0.velocities.any()
+    # jaws=None clamps the nodes where they settled
+    open_clamp = swing_model(small, p, jaws=None)
+    np.testing.assert_array_equal(open_clamp.state0.positions, settled)
+    assert open_clamp.preparation == {}
+
+
 def test_balanced_error_estimate_ignores_contact_jumps_the_film_balances(small):
     # In the swing the film hangs taut over its content: a contact force jump at a film node
     # is met by the film's own forces, so the node's acceleration does not jump. The "smooth"
@@ -340,7 +373,7 @@ def test_balanced_error_estimate_ignores_contact_jumps_the_film_balances(small):
 
     def run(**kw):
         opt = replace(consignment_options(), **kw)
-        r = swing_test(small, t_end=0.03, dt_out=0.003, options=opt)
+        r = swing_test(small, t_end=0.03, dt_out=0.003, options=opt, jaws=None)
         return r.result.stats, r.result.positions[:, r.consignment.edge].mean(axis=1)
 
     smooth, _ = run(error_estimate="smooth")

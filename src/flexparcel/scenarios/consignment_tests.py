@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -41,6 +41,7 @@ from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.model.model import Model, State
 from flexparcel.scenarios.base import Parameter, resolve_parameters
+from flexparcel.scenarios.swing_jaws import JawClosing, close_jaws
 from flexparcel.simulate import SimulationResult, simulate
 
 __all__ = [
@@ -103,6 +104,9 @@ TABLE3: tuple[Parameter, ...] = tuple(
 """The paper's Table 3 parameters as declared scenario parameters (paper units, default
 Table 6, any positive value)."""
 
+JAWS = JawClosing()
+"""The swing clamp's default jaw closing (:class:`~flexparcel.scenarios.swing_jaws.JawClosing`)."""
+
 S_MAX_MM = 0.1  # STEP damping ramp of all pairs [mm] (the paper does not print its value)
 FRICTION_PACKAGING = 0.3  # packaging-content and packaging-plate (not given in the paper)
 
@@ -160,7 +164,11 @@ class TestRun:
 
 
 def _builder(
-    snapshot: Snapshot, p: Mapping[str, float], stick_model: bool
+    snapshot: Snapshot,
+    p: Mapping[str, float],
+    stick_model: bool,
+    gravity: float = 9.81,
+    mass_damping: float = 0.0,
 ) -> tuple[ModelBuilder, Consignment]:
     mat = replace(
         snapshot.build.material,
@@ -169,7 +177,7 @@ def _builder(
     )
     build = replace(snapshot.build, material=mat)
     content_law, _ = _laws(p, stick_model)
-    b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    b = ModelBuilder(gravity=(0.0, 0.0, -gravity), mass_damping=mass_damping)
     c = add_consignment(b, build, content_law=content_law)
     return b, c
 
@@ -222,6 +230,9 @@ class TestModel:
     """Start state: the snapshot placed in the test's position."""
     reference: float
     """Swing: x of the clamp edge [m]; drop: contact radius of the first touch [m]."""
+    preparation: dict = field(default_factory=dict)
+    """What was done to the snapshot before the start (the swing's jaw closing: steps,
+    wall time [s], kinetic energy [J] when its hold ended); empty if nothing."""
 
 
 def swing_model(
@@ -230,16 +241,28 @@ def swing_model(
     *,
     clamped_length: float = 0.020,
     stick_model: bool = True,
+    jaws: JawClosing | None = JAWS,
 ) -> TestModel:
     """The swing test's model: ``clamped_length`` [m] of the length (the -x end, both
     layers) clamped, the rest free under gravity; ``parameters`` as :func:`parse_assignments`
-    returns them (paper units)."""
-    b, c = _builder(snapshot, parameters, stick_model)
-    x = snapshot.positions[c.packaging, 0]
-    x_clamp = float(x.min() + clamped_length)
-    b.clamp(c.packaging[x <= x_clamp + 1e-9])
-    model = b.finalize()
-    return TestModel(model, c, place_snapshot(snapshot, model), x_clamp)
+    returns them (paper units). ``jaws``: close the clamp as a pair of flat jaws first
+    (:mod:`flexparcel.scenarios.swing_jaws`); None clamps the nodes where they settled."""
+
+    def clamped_model(gravity: float, mass_damping: float = 0.0):
+        b, c = _builder(snapshot, parameters, stick_model, gravity, mass_damping)
+        x = snapshot.positions[c.packaging, 0]
+        x_clamp = float(x.min() + clamped_length)
+        clamped = c.packaging[x <= x_clamp + 1e-9]
+        b.clamp(clamped)
+        return b.finalize(), c, clamped, x_clamp
+
+    model, c, clamped, x_clamp = clamped_model(9.81)
+    state0 = place_snapshot(snapshot, model)
+    if jaws is None:
+        return TestModel(model, c, state0, x_clamp)
+    closing_model = clamped_model(0.0, jaws.mass_damping)[0]
+    state0, record = close_jaws(closing_model, c, clamped, state0, jaws, consignment_options())
+    return TestModel(model, c, state0, x_clamp, {"jaw_closing": record})
 
 
 def swing_test(
@@ -252,12 +275,16 @@ def swing_test(
     options: IntegratorOptions | None = None,
     progress: Callable[[float, float], None] | None = None,
     stick_model: bool = True,
+    jaws: JawClosing | None = JAWS,
 ) -> TestRun:
-    """Clamp ``clamped_length`` [m] of the length (the -x end, both layers), release the
-    horizontal consignment under gravity for ``t_end`` [s]."""
+    """Clamp ``clamped_length`` [m] of the length (the -x end, both layers; closed as flat
+    jaws first unless ``jaws`` is None, see :func:`swing_model`), release the horizontal
+    consignment under gravity for ``t_end`` [s]. The wall time includes the jaw closing."""
     p = parse_assignments(parameters)
-    tm = swing_model(snapshot, p, clamped_length=clamped_length, stick_model=stick_model)
+    tm = swing_model(snapshot, p, clamped_length=clamped_length, stick_model=stick_model,
+                     jaws=jaws)  # fmt: skip
     res, wall = _run(tm.model, tm.state0, t_end, dt_out, options or swing_options(), progress)
+    wall += tm.preparation.get("jaw_closing", {}).get("wall_s", 0.0)
     free_end = res.positions[:, tm.consignment.edge, 0].mean(axis=1)
     first, second = swing_responses(free_end - tm.reference)
     return TestRun("swing", res, {"first_swing_mm": first * 1e3, "second_swing_mm": second * 1e3},

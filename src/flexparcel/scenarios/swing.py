@@ -18,6 +18,7 @@ import numpy as np
 from flexparcel.scenarios.base import Response, ScenarioResult, single_snapshot
 from flexparcel.scenarios.consignment_scenario import ConsignmentTest, mm_response
 from flexparcel.scenarios.consignment_tests import (
+    JAWS,
     TestModel,
     TestRun,
     swing_model,
@@ -56,7 +57,10 @@ class SwingScenario(ConsignmentTest):
                            stick_model=self.stick_model)  # fmt: skip
 
     def _settings(self) -> dict:
-        return {"clamped_length_m": self.clamped_length}
+        j = JAWS
+        return {"clamped_length_m": self.clamped_length,
+                "jaws": {"close_time_s": j.close_time, "hold_time_s": j.hold_time,
+                         "increments": j.increments}}  # fmt: skip
 
     def _test_run(self, snapshot, parameters, t_end, dt_out, progress) -> TestRun:
         return swing_test(snapshot, parameters, t_end=t_end, dt_out=dt_out, progress=progress,
