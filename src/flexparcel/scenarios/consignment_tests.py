@@ -227,7 +227,8 @@ class TestModel:
     model: Model
     consignment: Consignment
     state0: State
-    """Start state: the snapshot placed in the test's position."""
+    """Start state: the snapshot placed in the test's position (the swing's with its jaws
+    closed, at rest)."""
     reference: float
     """Swing: x of the clamp edge [m]; drop: contact radius of the first touch [m]."""
     preparation: dict = field(default_factory=dict)
