@@ -351,7 +351,7 @@ def test_jaws_close_the_clamp_flat_and_leave_the_consignment_at_rest(small):
     assert np.allclose(tm.state0.rotations[clamped], np.eye(3), atol=1e-12)
     # x and y stay: the jaws press, they do not pull
     np.testing.assert_array_equal(tm.state0.positions[clamped, :2], settled[clamped, :2])
-    # at rest when the hold ends (measured 1.3e-8 J, against the 1.5e-4 J that a 1 mm drop
+    # at rest when the hold ends (measured 1.6e-8 J, against the 1.5e-4 J that a 1 mm drop
     # of the example's 15 g packaging end would give up), and released from rest
     assert tm.preparation["jaw_closing"]["kinetic_end_j"] < 1e-6
     assert not tm.state0.velocities.any()
@@ -376,13 +376,14 @@ def test_balanced_error_estimate_ignores_contact_jumps_the_film_balances(small):
         r = swing_test(small, t_end=0.03, dt_out=0.003, options=opt, jaws=None)
         return r.result.stats, r.result.positions[:, r.consignment.edge].mean(axis=1)
 
-    smooth, _ = run(error_estimate="smooth")
+    smooth, smooth_path = run(error_estimate="smooth")
     balanced, path = run(error_estimate="balanced")
     _, ref = run(error_estimate="full", tol_displacement=1e-6)
     assert balanced["rejected_error"] * 5 <= smooth["rejected_error"]
     # both meet the reference (100x tighter) within the local error tolerance, 0.1 mm, which
-    # bounds each step's error (measured: 35 um, on a 0.14 mm drop of the free end)
-    assert np.abs(path - ref).max() < consignment_options().tol_displacement
+    # bounds each step's error (measured: 35 um each, on a 0.14 mm drop of the free end)
+    for p in (smooth_path, path):
+        assert np.abs(p - ref).max() < consignment_options().tol_displacement
 
 
 @pytest.fixture(scope="module")

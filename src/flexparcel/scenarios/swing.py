@@ -11,6 +11,7 @@ reach is reported as not reached. Files: see
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import asdict
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -25,6 +26,7 @@ from flexparcel.scenarios.consignment_tests import (
     swing_peaks,
     swing_test,
 )
+from flexparcel.scenarios.swing_jaws import JawClosing
 
 if TYPE_CHECKING:
     from flexparcel.consignments.snapshot import Snapshot
@@ -36,36 +38,37 @@ CLAMPED_LENGTH = 0.020
 
 
 class SwingScenario(ConsignmentTest):
-    """The swing test; ``clamped_length`` [m] (default the paper's 20 mm)."""
+    """The swing test; ``clamped_length`` [m] (default the paper's 20 mm); ``jaws``: how the
+    clamp closes before the release (None: clamped where the nodes settled)."""
 
     name = "swing"
     description = "swing test: 20 mm of the length clamped, released horizontal (paper 3.2)"
     t_end = 1.4
     dt_out = 0.005  # the swing takes ~1 s: 5 ms frames draw it smoothly
 
-    def __init__(self, *, clamped_length: float = CLAMPED_LENGTH, stick_model: bool = True):
+    def __init__(self, *, clamped_length: float = CLAMPED_LENGTH, stick_model: bool = True,
+                 jaws: JawClosing | None = JAWS):  # fmt: skip
         if not 0.0 < clamped_length < 1.0:
             raise ValueError(f"clamped_length must be in (0, 1) m, got {clamped_length!r}")
         self.clamped_length = float(clamped_length)
         self.stick_model = bool(stick_model)
+        self.jaws = jaws
 
     def build(self, consignment: Snapshot | Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip
         snap = single_snapshot(consignment, self.name)
         p = self.resolve(parameters, snap.build)
         return swing_model(snap, p, clamped_length=self.clamped_length,
-                           stick_model=self.stick_model)  # fmt: skip
+                           stick_model=self.stick_model, jaws=self.jaws)  # fmt: skip
 
     def _settings(self) -> dict:
-        j = JAWS
-        return {"clamped_length_m": self.clamped_length,
-                "jaws": {"close_time_s": j.close_time, "hold_time_s": j.hold_time,
-                         "increments": j.increments}}  # fmt: skip
+        jaws = None if self.jaws is None else asdict(self.jaws)
+        return {"clamped_length_m": self.clamped_length, "jaws": jaws}
 
     def _test_run(self, snapshot, parameters, t_end, dt_out, progress) -> TestRun:
         return swing_test(snapshot, parameters, t_end=t_end, dt_out=dt_out, progress=progress,
                           clamped_length=self.clamped_length,
-                          stick_model=self.stick_model)  # fmt: skip
+                          stick_model=self.stick_model, jaws=self.jaws)  # fmt: skip
 
     def responses(self, result: ScenarioResult) -> dict[str, Response]:
         x_rel, _, _ = swing_curve(result.record, self.clamped_length)
