@@ -68,6 +68,9 @@ def test_material_overrides_only_what_is_given(tmp_path):
     assert b.material.areal_density == preset.areal_density
     assert b.element_size == pytest.approx(0.010)  # no element_size_mm: the 10 mm default
     assert "c.toml" in b.material.source
+    assert b.material.membrane == "elastic"
+    law = _write(tmp_path, SMALL + "[material]\nmembrane = 'tension-field'\n", "law.toml")
+    assert load_consignment_file(law).material.membrane == "tension-field"
 
 
 @pytest.mark.parametrize(
@@ -75,6 +78,10 @@ def test_material_overrides_only_what_is_given(tmp_path):
     [
         (lambda t: t + "colour = 'red'\n", r"unknown key\(s\) colour"),
         (lambda t: t + "[material]\nstiffness = 3\n", r"unknown key\(s\) material\.stiffness"),
+        (
+            lambda t: t + "[material]\nmembrane = 'wrinkly'\n",
+            r"material\.membrane = 'wrinkly' is invalid \(allowed: elastic \| tension-field\)",
+        ),
         (
             lambda t: t + "[material]\nthickness_mm = -0.1\n",
             r"material\.thickness_mm = -0\.1 is invalid \(allowed: 0 < thickness_mm <= 20 mm\)",
@@ -113,6 +120,7 @@ def test_material_overrides_only_what_is_given(tmp_path):
     ids=[
         "unknown-key",
         "unknown-material-key",
+        "unknown-membrane-law",
         "negative-thickness",
         "poisson-0.5",
         "content-larger-than-packaging",

@@ -15,6 +15,7 @@ from flexparcel.integrate.static import apply_increment
 
 EPS = 1e-6
 RTOL = 1e-6
+_TF0 = np.zeros((1, 3, 12))  # elastic membrane (no tension-field data)
 
 
 def _random_triangle_state(seed):
@@ -30,7 +31,7 @@ def _random_triangle_state(seed):
 
 def _forces(tris, kl, xloc, frames, beta, x, rot, vel):
     out = np.zeros((3, 6))
-    shell.element_forces(tris, kl, xloc, frames, beta, x, rot, vel, out)
+    shell.element_forces(tris, kl, xloc, frames, beta, _TF0, x, rot, vel, out)
     return out.ravel()
 
 
@@ -59,11 +60,11 @@ def test_shell_force_is_gradient_of_strain_energy():
     tris = np.array([[0, 1, 2]])
     zero = np.zeros((3, 6))
     out = np.zeros((3, 6))
-    shell.element_forces(tris, kl, xloc, frames, np.zeros(1), x, rot, zero, out)
+    shell.element_forces(tris, kl, xloc, frames, np.zeros(1), _TF0, x, rot, zero, out)
 
     def energy(xx, rr):
         return shell.element_forces(
-            tris, kl, xloc, frames, np.zeros(1), xx, rr, zero, np.zeros((3, 6))
+            tris, kl, xloc, frames, np.zeros(1), _TF0, xx, rr, zero, np.zeros((3, 6))
         )
 
     g = _fd_wrt_nodes(energy, x, rot)[0]
@@ -77,7 +78,7 @@ def test_shell_stiffness_and_damping_tangents_match_finite_differences():
     emap = np.arange(324).reshape(1, 18, 18)
     dk, dc = np.zeros(325), np.zeros(325)
     shell.element_tangents(
-        tris, kl, xloc, frames, beta, x, rot, vel, np.zeros((3, 6)), dk, dc, emap
+        tris, kl, xloc, frames, beta, _TF0, x, rot, vel, np.zeros((3, 6)), dk, dc, emap
     )
     k = dk[:324].reshape(18, 18)
     c = dc[:324].reshape(18, 18)

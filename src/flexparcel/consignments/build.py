@@ -245,12 +245,11 @@ def add_consignment(
     else:
         edge_local = bottom_ids[i == nx]
     t = mat.thickness
-    shell = ShellMaterial(mat.youngs_modulus, mat.poisson_ratio, mat.density, t, mat.damping_ratio)
+    shell = ShellMaterial(mat.youngs_modulus, mat.poisson_ratio, mat.density, t,
+                          mat.damping_ratio, mat.membrane)  # fmt: skip
     ids = b.add_shell_mesh(pts, quads, material=shell)
     if strip_quads is not None:
-        doubled = ShellMaterial(
-            mat.youngs_modulus, mat.poisson_ratio, mat.density, 2 * t, mat.damping_ratio
-        )
+        doubled = replace(shell, thickness=2 * t)
         b.add_shell_elements(ids[strip_quads], material=doubled)
     # real mesh area (the first ring of the top layer slopes up to the initial gap)
     q = pts[quads]

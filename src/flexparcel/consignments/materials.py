@@ -14,6 +14,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from flexparcel.model.materials import MEMBRANE_LAWS
+
 __all__ = ["PackagingMaterial", "PACKAGING_PRESETS", "FLEXIBLE_CONTENT", "packaging_material"]
 
 
@@ -24,7 +26,9 @@ class PackagingMaterial:
     ``damping_ratio`` is RecurDyn's FFlex Damping Ratio: the stiffness-proportional Rayleigh
     coefficient beta [s] (C = beta K), not a fraction of critical damping.
     ``areal_density`` [kg/m^2] sets the packaging mass; the content gets the rest of the
-    consignment's mass.
+    consignment's mass. ``membrane`` is the shell's membrane law
+    (:data:`flexparcel.model.materials.MEMBRANE_LAWS`): "tension-field" lets the film wrinkle
+    instead of carrying compression.
     """
 
     name: str
@@ -36,6 +40,7 @@ class PackagingMaterial:
     surface: str
     """Friction surface of the outside (pe_film, kraft_paper, bubble_wrap)."""
     source: str
+    membrane: str = "elastic"
 
     def __post_init__(self) -> None:
         for key, lo in (("youngs_modulus", 0.0), ("thickness", 0.0), ("areal_density", 0.0)):
@@ -46,6 +51,11 @@ class PackagingMaterial:
             raise ValueError(
                 f"packaging material {self.name!r}: poisson_ratio must be in [0, 0.5), "
                 f"got {self.poisson_ratio!r}"
+            )
+        if self.membrane not in MEMBRANE_LAWS:
+            raise ValueError(
+                f"packaging material {self.name!r}: membrane must be one of "
+                f"{'|'.join(MEMBRANE_LAWS)}, got {self.membrane!r}"
             )
         if not (np.isfinite(self.damping_ratio) and self.damping_ratio >= 0.0):
             raise ValueError(

@@ -49,6 +49,7 @@ from flexparcel.consignments.spec import (
     ConsignmentSpec,
 )
 from flexparcel.io.tomlfile import read_toml
+from flexparcel.model.materials import MEMBRANE_LAWS
 
 __all__ = [
     "MATERIAL_KEYS",
@@ -72,6 +73,8 @@ MATERIAL_KEYS: dict[str, tuple[str, float, str, str, str]] = {
     "damping_ratio_s": ("damping_ratio", 1.0, "[0", "1]", "s"),
 }
 """The ``[material]`` keys: paper-style units in the file, converted to SI."""
+MEMBRANE_KEY = "membrane"
+"""The ``[material]`` key of the membrane law, a string (``MEMBRANE_LAWS``)."""
 
 _SPEC_KEYS = {f.name for f in fields(ConsignmentSpec)}
 _SPEC_OPTIONAL = {"content_fixed_to_packaging", "based_on_cluster"}
@@ -146,16 +149,28 @@ def _material_overrides(base: PackagingMaterial, table: object, path: Path) -> P
     """``base`` with the ``[material]`` table's values (file units) converted to SI."""
     if not isinstance(table, dict):
         raise ConsignmentFileError(
-            f"{path}: material must be a table ([material] with {', '.join(MATERIAL_KEYS)})"
+            f"{path}: material must be a table ([material] with "
+            f"{', '.join([*MATERIAL_KEYS, MEMBRANE_KEY])})"
         )
-    unknown = sorted(set(table) - set(MATERIAL_KEYS))
+    allowed = [*MATERIAL_KEYS, MEMBRANE_KEY]
+    unknown = sorted(set(table) - set(allowed))
     if unknown:
         raise ConsignmentFileError(
             f"{path}: unknown key(s) {', '.join('material.' + k for k in unknown)} "
-            f"(allowed: {', '.join(MATERIAL_KEYS)})"
+            f"(allowed: {', '.join(allowed)})"
         )
-    changes: dict[str, float] = {}
+    changes: dict[str, float | str] = {}
+    if MEMBRANE_KEY in table:
+        law = table[MEMBRANE_KEY]
+        if law not in MEMBRANE_LAWS:
+            raise ConsignmentFileError(
+                f"{path}: material.{MEMBRANE_KEY} = {law!r} is invalid "
+                f"(allowed: {' | '.join(MEMBRANE_LAWS)})"
+            )
+        changes["membrane"] = law
     for key, value in table.items():
+        if key == MEMBRANE_KEY:
+            continue
         field_name, factor, low, high, unit = MATERIAL_KEYS[key]
         lo, hi = float(low[1:]), float(high[:-1])
         ok = _is_number(value)

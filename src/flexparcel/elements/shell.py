@@ -27,6 +27,18 @@ CMAME 194:2285):
   term is stiffness-proportional Rayleigh damping ``C = beta * K_cr`` where ``K_cr = B^T K_l B`` is
   the co-rotational material stiffness at the current configuration: rigid-body motion is not
   damped (RecurDyn FFlex "damping ratio" beta [s]).
+* Tension-field membrane (``ShellMaterial(membrane="tension-field")``): a film far thinner than
+  the mesh wrinkles under a compressive strain the mesh cannot resolve (a 0.3 mm film over a
+  10 mm span buckles at 0.07 %), so the constant-strain (basic) membrane part carries no
+  compressive principal stress. With the principal strains e1 >= e2 of the basic strain, the
+  element is *taut* where the minor principal stress is >= 0 (e2 + nu e1 >= 0: the elastic law),
+  *slack* where e1 <= 0 (no stress), and *wrinkled* in between: uniaxial tension
+  ``sigma = E e1 n1 n1^T`` along the major principal direction n1 (Roddeman, Drukker, Oomens &
+  Janssen 1987, "The wrinkling of thin membranes", J. Appl. Mech. 54:884; the isotropic form of
+  Jarasjarungkiat, Wuechner & Bletzinger 2008, CMAME 197:773). Its energy density
+  ``E e1^2 / 2`` meets the elastic one with its stress at the taut boundary, so forces are
+  continuous. OPT's higher-order part, the DKT bending and the Rayleigh damping stay linear
+  (RecurDyn's C = beta K with the elastic K).
 * Tangent: the exact derivative of ``f`` with respect to nodal positions and spatial spins, by the
   complex-step method (the kernels are dtype-generic), i.e. consistent to machine precision and
   including all geometric (frame-rotation) terms. Tests compare it with finite differences.
@@ -45,6 +57,7 @@ from flexparcel.model.interfaces import ElementGroup
 __all__ = [
     "ShellGroup",
     "local_stiffness",
+    "tension_field_data",
     "reference_frames",
     "element_forces",
     "element_tangents",
@@ -132,6 +145,32 @@ def opt_beta0(poisson_ratio: float) -> float:
     return max(0.5 * (1.0 - 4.0 * poisson_ratio**2), 0.01)
 
 
+def opt_basic_strain(xy: np.ndarray) -> np.ndarray:
+    """OPT's basic (constant) membrane strain map ``B_b`` (3, 9) [1/m] over ``[u, v, theta_z]``
+    per corner: ``[e_xx, e_yy, g_xy] = B_b d_m``, i.e. ``L^T / A`` with Felippa's (2003)
+    force-lumping matrix L and alpha_b = 3/2."""
+    x, y = xy[:, 0], xy[:, 1]
+    nxt = np.array([1, 2, 0])
+    prv = np.array([2, 0, 1])
+    b = y[nxt] - y[prv]
+    c = x[prv] - x[nxt]
+    two_a = b[0] * c[1] - b[1] * c[0]
+    ab = OPT_ALPHA_B
+    bb = np.zeros((3, 9))
+    for i in range(3):
+        j, k = nxt[i], prv[i]
+        xki, xij = x[k] - x[i], x[i] - x[j]
+        yik, yji = y[i] - y[k], y[j] - y[i]
+        bb[0, 3 * i] = b[i]
+        bb[1, 3 * i + 1] = c[i]
+        bb[2, 3 * i] = c[i]
+        bb[2, 3 * i + 1] = b[i]
+        bb[0, 3 * i + 2] = ab / 6.0 * b[i] * (yik - yji)
+        bb[1, 3 * i + 2] = ab / 6.0 * c[i] * (xki - xij)
+        bb[2, 3 * i + 2] = ab / 3.0 * (xki * yik - xij * yji)
+    return bb / two_a
+
+
 def _opt_membrane(xy: np.ndarray, dmat: np.ndarray, thickness: float, beta0: float) -> np.ndarray:
     """OPT membrane stiffness (9, 9) over ``[u, v, theta_z]`` per corner (Felippa 2003).
 
@@ -162,21 +201,7 @@ def _opt_membrane(xy: np.ndarray, dmat: np.ndarray, thickness: float, beta0: flo
     two_a = b[0] * c[1] - b[1] * c[0]
     area = 0.5 * two_a
     vol = area * thickness
-    ab = OPT_ALPHA_B
-    # --- basic part: B_b (3, 9) = L^T / V with Felippa's (2003) force-lumping matrix L
-    bb = np.zeros((3, 9))
-    for i in range(3):
-        j, k = nxt[i], prv[i]
-        xki, xij = x[k] - x[i], x[i] - x[j]
-        yik, yji = y[i] - y[k], y[j] - y[i]
-        bb[0, 3 * i] = b[i]
-        bb[1, 3 * i + 1] = c[i]
-        bb[2, 3 * i] = c[i]
-        bb[2, 3 * i + 1] = b[i]
-        bb[0, 3 * i + 2] = ab / 6.0 * b[i] * (yik - yji)
-        bb[1, 3 * i + 2] = ab / 6.0 * c[i] * (xki - xij)
-        bb[2, 3 * i + 2] = ab / 3.0 * (xki * yik - xij * yji)
-    bb /= two_a
+    bb = opt_basic_strain(xy)
     k_basic = vol * bb.T @ dmat @ bb
     # --- higher-order part
     # deviatoric corner rotations: theta_i - theta_0, theta_0 = sum_i (b_i v_i - c_i u_i) / (4A)
@@ -236,6 +261,107 @@ def local_stiffness(
         bk = bb @ tmap
         kb += (area / 3.0) * bk.T @ db @ bk
     k[np.ix_(plate, plate)] += kb
+    return k
+
+
+def tension_field_data(
+    xy: np.ndarray, youngs_modulus: float, poisson_ratio: float, thickness: float
+) -> np.ndarray:
+    """Per-triangle data (3, 12) of the tension-field membrane: ``[B_b | V D]``, OPT's basic
+    strain map (3, 9) [1/m] and the plane-stress modulus times the volume A t (3, 3) [N m].
+    All zeros means an elastic membrane (the kernels test ``[0, 9] != 0``)."""
+    e, nu = youngs_modulus, poisson_ratio
+    iso = np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, 0.5 * (1.0 - nu)]]) / (1.0 - nu**2)
+    x, y = xy[:, 0], xy[:, 1]
+    area = 0.5 * abs((x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]))
+    return np.hstack([opt_basic_strain(xy), e * iso * area * thickness])
+
+
+# --------------------------------------------------------------------------- tension field
+@nb.njit(cache=True)
+def _tension_field(eps, vd):
+    """Relaxed stress resultant ``V sigma`` (3,) and energy ``V W`` of the basic strain
+    ``eps = [e_xx, e_yy, g_xy]`` for ``vd = V D`` (3, 3) of an isotropic film (see the module
+    docstring: taut, wrinkled or slack). Dtype-generic for the complex-step tangent: states are
+    chosen by real parts, and ``r > 0`` wherever it divides (a wrinkled state has e1 > 0 > e2)."""
+    nu = vd[0, 1] / vd[0, 0]
+    ev = vd[0, 0] * (1.0 - nu * nu)  # E V
+    em = 0.5 * (eps[0] + eps[1])
+    a = 0.5 * (eps[0] - eps[1])
+    b = 0.5 * eps[2]
+    r = np.sqrt(a * a + b * b)
+    e1 = em + r
+    e2 = em - r
+    sig = np.zeros(3, eps.dtype)
+    if (e2 + nu * e1).real >= 0.0:  # taut
+        for i in range(3):
+            sig[i] = vd[i, 0] * eps[0] + vd[i, 1] * eps[1] + vd[i, 2] * eps[2]
+        return sig, 0.5 * (sig[0] * eps[0] + sig[1] * eps[1] + sig[2] * eps[2])
+    if e1.real <= 0.0:  # slack
+        return sig, 0.0 * em
+    s1 = ev * e1  # wrinkled: uniaxial tension along n1, cos 2phi = a / r, sin 2phi = b / r
+    sig[0] = 0.5 * s1 * (1.0 + a / r)
+    sig[1] = 0.5 * s1 * (1.0 - a / r)
+    sig[2] = 0.5 * s1 * (b / r)
+    return sig, 0.5 * s1 * e1
+
+
+@nb.njit(cache=True)
+def _basic_strain(d, tfm):
+    """Basic membrane strain (3,) from the local DOFs ``d`` (18,) and ``tfm`` = [B_b | V D]."""
+    eps = np.zeros(3, d.dtype)
+    for i in range(3):
+        acc = 0.0 * d[0]
+        for a in range(3):
+            acc += tfm[i, 3 * a] * d[6 * a] + tfm[i, 3 * a + 1] * d[6 * a + 1]
+            acc += tfm[i, 3 * a + 2] * d[6 * a + 5]
+        eps[i] = acc
+    return eps
+
+
+@nb.njit(cache=True)
+def _tension_field_correction(d, tfm, s):
+    """Add to the local stress resultant ``s`` (18,) the tension-field minus the elastic
+    basic membrane part; returns the matching energy correction [J]."""
+    eps = _basic_strain(d, tfm)
+    vd = tfm[:, 9:12]
+    sig, w = _tension_field(eps, vd)
+    for i in range(3):
+        el = vd[i, 0] * eps[0] + vd[i, 1] * eps[1] + vd[i, 2] * eps[2]
+        w -= 0.5 * el * eps[i]
+        sig[i] -= el
+    for a in range(3):
+        for k in range(3):
+            slot = 6 * a + (5 if k == 2 else k)  # [u, v, theta_z] of corner a
+            col = 3 * a + k
+            s[slot] += tfm[0, col] * sig[0] + tfm[1, col] * sig[1] + tfm[2, col] * sig[2]
+    return w
+
+
+@nb.njit(cache=True)
+def _tension_field_stiffness(d, tfm, kl):
+    """``kl`` with its basic membrane part replaced by the tension field's tangent
+    ``B_b^T (dV sigma / d eps) B_b`` (by complex step over the three strains: exact)."""
+    eps = _basic_strain(d, tfm)
+    vd = tfm[:, 9:12]
+    dsig = np.zeros((3, 3))
+    h = _CS_STEP
+    for j in range(3):
+        ec = eps.astype(np.complex128)
+        ec[j] += 1j * h
+        sc, _ = _tension_field(ec, vd)
+        for i in range(3):
+            dsig[i, j] = sc[i].imag / h - vd[i, j]
+    delta = 0.5 * (dsig + dsig.T)  # the Hessian of W: symmetric up to round-off
+    k = kl.copy()
+    memb = np.array([0, 1, 5, 6, 7, 11, 12, 13, 17])
+    for p in range(9):
+        for q in range(9):
+            acc = 0.0
+            for i in range(3):
+                for j in range(3):
+                    acc += tfm[i, p] * delta[i, j] * tfm[j, q]
+            k[memb[p], memb[q]] += acc
     return k
 
 
@@ -336,16 +462,17 @@ def _tri_kinematics(x, rot, xloc, r0ref):
 
 
 @nb.njit(cache=True)
-def _tri_force(x, rot, vel, kl, xloc, r0ref, beta):
+def _tri_force(x, rot, vel, kl, xloc, r0ref, beta, tfm):
     """Internal force (18,) and strain energy of one triangle; ``vel`` (18,) nodal [v, omega]."""
     d, bg = _tri_kinematics(x, rot, xloc, r0ref)
-    return _force_from_kinematics(d, bg, vel, kl, beta)
+    return _force_from_kinematics(d, bg, vel, kl, beta, tfm)
 
 
 @nb.njit(cache=True)
-def _force_from_kinematics(d, bg, vel, kl, beta):
+def _force_from_kinematics(d, bg, vel, kl, beta, tfm):
     """Force (18,) and strain energy from local DOFs ``d`` and ``B`` of :func:`_tri_kinematics`
-    (the tangent kernel has them already: computing them once saves a third of its time)."""
+    (the tangent kernel has them already: computing them once saves a third of its time);
+    ``tfm`` (3, 12) the tension-field data, zeros for an elastic membrane."""
     dd = d.copy()
     if beta != 0.0:
         for i in range(18):
@@ -363,6 +490,8 @@ def _force_from_kinematics(d, bg, vel, kl, beta):
             acc2 += kl[i, j] * d[j]
         s[i] = acc
         energy += 0.5 * d[i] * acc2
+    if tfm[0, 9] != 0.0:
+        energy += _tension_field_correction(d, tfm, s)
     f = np.zeros(18, d.dtype)
     for j in range(18):
         acc = 0.0 * d[0]
@@ -386,10 +515,10 @@ def _gather(e, tris, pos, rot, vel):
 
 
 @nb.njit(cache=True, parallel=True)
-def _element_force_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en):
+def _element_force_blocks(tris, kl, xloc, r0ref, beta, tfm, pos, rot, vel, fe, en):
     for e in nb.prange(tris.shape[0]):
         x, r, v = _gather(e, tris, pos, rot, vel)
-        f, energy = _tri_force(x, r, v, kl[e], xloc[e], r0ref[e], beta[e])
+        f, energy = _tri_force(x, r, v, kl[e], xloc[e], r0ref[e], beta[e], tfm[e])
         fe[e] = f
         en[e] = energy
 
@@ -402,16 +531,17 @@ def _scatter_forces(tris, fe, out):
                 out[tris[e, a], i] += fe[e, 6 * a + i]
 
 
-def element_forces(tris, kl, xloc, r0ref, beta, pos, rot, vel, out):
+def element_forces(tris, kl, xloc, r0ref, beta, tfm, pos, rot, vel, out):
     """Assemble internal forces of all triangles into ``out`` (node_count, 6); returns strain
-    energy [J]. ``pos`` (n, 3) [m], ``rot`` (n, 3, 3), ``vel`` (n, 6) [m/s, rad/s].
+    energy [J]. ``pos`` (n, 3) [m], ``rot`` (n, 3, 3), ``vel`` (n, 6) [m/s, rad/s]; ``tfm``
+    (m, 3, 12) the tension-field data (:func:`tension_field_data`; zeros: elastic).
 
     Element blocks are computed in parallel (numba threads), then scattered serially so the
     sum is deterministic."""
     m = tris.shape[0]
     fe = np.empty((m, 18))
     en = np.empty(m)
-    _element_force_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en)
+    _element_force_blocks(tris, kl, xloc, r0ref, beta, tfm, pos, rot, vel, fe, en)
     _scatter_forces(tris, fe, out)
     return float(en.sum())
 
@@ -445,44 +575,52 @@ def _btkb_into(bg, kl, out):
 
 
 @nb.njit(cache=True, parallel=True)
-def _material_tangent_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en, ke):
+def _material_tangent_blocks(tris, kl, xloc, r0ref, beta, tfm, pos, rot, vel, fe, en, ke, kt):
+    """Forces, energies and ``B^T K_l B`` per triangle; where the membrane is a tension field,
+    ``kt[e]`` gets the stiffness with its relaxed tangent (``ke`` stays elastic: the damping)."""
     for e in nb.prange(tris.shape[0]):
         x, r, v = _gather(e, tris, pos, rot, vel)
         d, bg = _tri_kinematics(x, r, xloc[e], r0ref[e])
-        f, energy = _force_from_kinematics(d, bg, v, kl[e], beta[e])
+        f, energy = _force_from_kinematics(d, bg, v, kl[e], beta[e], tfm[e])
         fe[e] = f
         en[e] = energy
         _btkb_into(bg, kl[e], ke[e])
+        if tfm[e, 0, 9] != 0.0:
+            _btkb_into(bg, _tension_field_stiffness(d, tfm[e], kl[e]), kt[e])
 
 
 @nb.njit(cache=True)
-def _scatter_matrices(emap, ke, beta, data_k, data_c):
-    """K_e into ``data_k`` and beta_e K_e into ``data_c``, in one pass over the slots."""
+def _scatter_matrices(emap, ke, beta, tfm, kt, data_k, data_c):
+    """K_e into ``data_k`` (``kt[e]`` for a tension-field membrane) and beta_e K_e into
+    ``data_c``, in one pass over the slots."""
     for e in range(ke.shape[0]):
         b = beta[e]
+        relaxed = tfm[e, 0, 9] != 0.0
         for i in range(18):
             for j in range(18):
                 slot = emap[e, i, j]
                 k = ke[e, i, j]
-                data_k[slot] += k
+                data_k[slot] += kt[e, i, j] if relaxed else k
                 data_c[slot] += b * k
 
 
-def material_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, data_c, emap):
-    """Forces into ``out_f``; material stiffness ``B^T K_l B`` into CSR ``data_k`` and the
-    Rayleigh damping ``beta B^T K_l B`` into ``data_c``. Returns the strain energy [J]."""
+def material_tangents(tris, kl, xloc, r0ref, beta, tfm, pos, rot, vel, out_f, data_k, data_c, emap):
+    """Forces into ``out_f``; material stiffness ``B^T K_l B`` (with the tension field's
+    relaxed membrane tangent where it applies) into CSR ``data_k`` and the Rayleigh damping
+    ``beta B^T K_l B`` into ``data_c``. Returns the strain energy [J]."""
     m = tris.shape[0]
     fe = np.empty((m, 18))
     en = np.empty(m)
     ke = np.empty((m, 18, 18))
-    _material_tangent_blocks(tris, kl, xloc, r0ref, beta, pos, rot, vel, fe, en, ke)
+    kt = np.empty((m if tfm[:, 0, 9].any() else 1, 18, 18))  # only read where relaxed
+    _material_tangent_blocks(tris, kl, xloc, r0ref, beta, tfm, pos, rot, vel, fe, en, ke, kt)
     _scatter_forces(tris, fe, out_f)
-    _scatter_matrices(emap, ke, beta, data_k, data_c)
+    _scatter_matrices(emap, ke, beta, tfm, kt, data_k, data_c)
     return float(en.sum())
 
 
 @nb.njit(cache=True)
-def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, data_c, emap):
+def element_tangents(tris, kl, xloc, r0ref, beta, tfm, pos, rot, vel, out_f, data_k, data_c, emap):
     """Forces into ``out_f``; stiffness ``dF/d(x, spin)`` scattered into CSR ``data_k`` and
     damping ``dF/d(v, omega)`` into ``data_c`` through ``emap`` (m, 18, 18) of data indices.
     Returns the strain energy [J].
@@ -495,7 +633,7 @@ def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, 
     h = _CS_STEP
     for e in range(tris.shape[0]):
         x, r, v = _gather(e, tris, pos, rot, vel)
-        f, en = _tri_force(x, r, v, kl[e], xloc[e], r0ref[e], beta[e])
+        f, en = _tri_force(x, r, v, kl[e], xloc[e], r0ref[e], beta[e], tfm[e])
         energy += en
         for a in range(3):
             out_f[tris[e, a]] += f[6 * a : 6 * a + 6]
@@ -505,7 +643,7 @@ def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, 
         for a in range(3):
             for i in range(3):
                 xc[a, i] += 1j * h
-                fc, _ = _tri_force(xc, rc, v, kl[e], xloc[e], r0ref[e], beta[e])
+                fc, _ = _tri_force(xc, rc, v, kl[e], xloc[e], r0ref[e], beta[e], tfm[e])
                 xc[a, i] -= 1j * h
                 ke[:, 6 * a + i] = fc.imag / h
             for i in range(3):
@@ -514,7 +652,7 @@ def element_tangents(tris, kl, xloc, r0ref, beta, pos, rot, vel, out_f, data_k, 
                 ei[i] = 1.0
                 dr = matmul(skew(ei), r[a].copy())
                 rc[a] += 1j * h * dr
-                fc, _ = _tri_force(xc, rc, v, kl[e], xloc[e], r0ref[e], beta[e])
+                fc, _ = _tri_force(xc, rc, v, kl[e], xloc[e], r0ref[e], beta[e], tfm[e])
                 rc[a] = r[a]
                 ke[:, 6 * a + 3 + i] = fc.imag / h
         for i in range(18):
@@ -540,7 +678,9 @@ class ShellGroup(ElementGroup):
 
     kind = "shell"
 
-    def __init__(self, triangles, kl, xloc, frame0, beta, node_mass, node_inertia) -> None:
+    def __init__(
+        self, triangles, kl, xloc, frame0, beta, node_mass, node_inertia, tension_field=None
+    ) -> None:
         self.triangles = np.ascontiguousarray(triangles, dtype=np.int64)
         """Triangles used by the kernels, shape (m, 3)."""
         self.kl = kl
@@ -551,6 +691,11 @@ class ShellGroup(ElementGroup):
         """Reference element frames, shape (m, 3, 3) (columns e1, e2, e3)."""
         self.beta = beta
         """Rayleigh stiffness-proportional damping beta [s] per triangle, shape (m,)."""
+        self.tension_field = (
+            np.zeros((len(self.triangles), 3, 12)) if tension_field is None else tension_field
+        )
+        """Tension-field membrane data per triangle (:func:`tension_field_data`), shape
+        (m, 3, 12); zeros where the membrane is elastic."""
         self._node_mass = node_mass  # (m,) mass [kg] each corner of a triangle gets
         self._node_inertia = node_inertia  # (m,) rotary inertia [kg m^2] each corner gets
         self.emap = np.zeros((len(self.triangles), 18, 18), np.int64)
@@ -585,7 +730,16 @@ class ShellGroup(ElementGroup):
         m_node = rho_t * area * w / 3.0
         j_node = rho_t * material.thickness**2 / 12.0 * area * w / 3.0
         beta = np.full(len(tri), float(material.damping_ratio))
-        return cls(tri, kl, xloc, frames, beta, m_node, j_node)
+        tfm = np.zeros((len(tri), 3, 12))
+        if material.membrane == "tension-field":
+            t_shape = np.array([
+                tension_field_data(xloc[e], material.youngs_modulus, material.poisson_ratio,
+                                   material.thickness)
+                for e in first
+            ])  # fmt: skip
+            tfm = t_shape[which.ravel()]
+            tfm[:, :, 9:] *= w[:, None, None]  # the modulus times the weighted volume
+        return cls(tri, kl, xloc, frames, beta, m_node, j_node, tfm)
 
     @classmethod
     def concatenate(cls, groups: list[ShellGroup]) -> ShellGroup:
@@ -595,7 +749,7 @@ class ShellGroup(ElementGroup):
             return np.concatenate([getattr(g, name) for g in groups])
 
         return cls(cat("triangles"), cat("kl"), cat("xloc"), cat("frame0"), cat("beta"),
-                   cat("_node_mass"), cat("_node_inertia"))  # fmt: skip
+                   cat("_node_mass"), cat("_node_inertia"), cat("tension_field"))  # fmt: skip
 
     def renumber(self, offset: int) -> None:
         """Raise the node ids by ``offset`` (from mesh-local to model numbering)."""
@@ -624,7 +778,7 @@ class ShellGroup(ElementGroup):
         return self.nodes()
 
     def _data(self) -> tuple:
-        return self.triangles, self.kl, self.xloc, self.frame0, self.beta
+        return self.triangles, self.kl, self.xloc, self.frame0, self.beta, self.tension_field
 
     def forces(self, positions, rotations, velocities, out) -> float:
         return element_forces(*self._data(), positions, rotations, velocities, out)
@@ -641,7 +795,10 @@ class ShellGroup(ElementGroup):
         return np.column_stack([t.ravel(), np.roll(t, -1, axis=1).ravel()])
 
     def fingerprint_arrays(self) -> list[np.ndarray]:
-        return [np.array(self.kind), self.triangles, self.xloc, self.beta]
+        arrays = [np.array(self.kind), self.triangles, self.xloc, self.beta]
+        relaxed = self.tension_field[:, 0, 9] != 0.0
+        # only a model with a tension field adds it: elastic models keep their fingerprints
+        return arrays + [relaxed] if relaxed.any() else arrays
 
     def characteristic_length(self) -> float | None:
         x = self.xloc

@@ -9,6 +9,7 @@ from flexparcel.model.checks import finite_number
 
 __all__ = [
     "ShellMaterial",
+    "MEMBRANE_LAWS",
     "validate_elastic",
     "UnitWarning",
     "PlausibilityWarning",
@@ -84,6 +85,12 @@ def validate_elastic(mat, name: str, stacklevel: int = 4) -> None:
         )
 
 
+MEMBRANE_LAWS = ("elastic", "tension-field")
+"""Membrane laws of :class:`ShellMaterial`: "elastic" (linear, carries compression as a
+plate does) or "tension-field" (a compressive principal membrane stress is relaxed to zero:
+the film wrinkles instead; see :mod:`flexparcel.elements.shell`)."""
+
+
 @dataclass(frozen=True)
 class ShellMaterial:
     """Isotropic linear-elastic shell material (small strain, used in the co-rotated frame).
@@ -96,6 +103,10 @@ class ShellMaterial:
         damping_ratio: RecurDyn's FFlex "Damping Ratio", the stiffness-proportional Rayleigh
             coefficient beta [s] in C = beta * K (mass-proportional term zero). It is NOT a
             fraction of critical damping: mode i is damped with zeta_i = beta * omega_i / 2.
+        membrane: membrane law, one of :data:`MEMBRANE_LAWS`. "tension-field" is for films
+            far thinner than the mesh can wrinkle: a 0.3 mm film buckles under 0.07 % strain
+            over a 10 mm span, so an element that shortens in-plane should carry no
+            compression (Roddeman et al. 1987); bending (DKT) and damping stay linear.
     """
 
     youngs_modulus: float
@@ -103,9 +114,15 @@ class ShellMaterial:
     density: float
     thickness: float
     damping_ratio: float = 0.0
+    membrane: str = "elastic"
 
     def __post_init__(self) -> None:
         validate_elastic(self, "ShellMaterial")
+        if self.membrane not in MEMBRANE_LAWS:
+            raise ValueError(
+                f"ShellMaterial.membrane must be one of {'|'.join(MEMBRANE_LAWS)}, "
+                f"got {self.membrane!r}"
+            )
         t = _check_finite("ShellMaterial", "thickness", self.thickness)
         if t <= 0:
             raise ValueError(f"ShellMaterial.thickness must be > 0 m, got {t!r}")
