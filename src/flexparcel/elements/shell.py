@@ -226,6 +226,11 @@ def _opt_membrane(xy: np.ndarray, dmat: np.ndarray, thickness: float, beta0: flo
     return k_basic + t_rot.T @ k_theta @ t_rot
 
 
+def _plane_stress(nu: float) -> np.ndarray:
+    """Isotropic plane-stress modulus over E (3, 3), ``[xx, yy, xy (engineering)]``."""
+    return np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, 0.5 * (1.0 - nu)]]) / (1.0 - nu**2)
+
+
 def local_stiffness(
     xy: np.ndarray, youngs_modulus: float, poisson_ratio: float, thickness: float
 ) -> np.ndarray:
@@ -236,7 +241,7 @@ def local_stiffness(
     uncoupled (flat facet).
     """
     e, nu, h = youngs_modulus, poisson_ratio, thickness
-    iso = np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, 0.5 * (1.0 - nu)]]) / (1.0 - nu**2)
+    iso = _plane_stress(nu)
     x, y = xy[:, 0], xy[:, 1]
     b = np.array([y[1] - y[2], y[2] - y[0], y[0] - y[1]])
     c = np.array([x[2] - x[1], x[0] - x[2], x[1] - x[0]])
@@ -270,11 +275,10 @@ def tension_field_data(
     """Per-triangle data (3, 12) of the tension-field membrane: ``[B_b | V D]``, OPT's basic
     strain map (3, 9) [1/m] and the plane-stress modulus times the volume A t (3, 3) [N m].
     All zeros means an elastic membrane (the kernels test ``[0, 9] != 0``)."""
-    e, nu = youngs_modulus, poisson_ratio
-    iso = np.array([[1.0, nu, 0.0], [nu, 1.0, 0.0], [0.0, 0.0, 0.5 * (1.0 - nu)]]) / (1.0 - nu**2)
     x, y = xy[:, 0], xy[:, 1]
     area = 0.5 * abs((x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]))
-    return np.hstack([opt_basic_strain(xy), e * iso * area * thickness])
+    vd = youngs_modulus * _plane_stress(poisson_ratio) * area * thickness
+    return np.hstack([opt_basic_strain(xy), vd])
 
 
 # --------------------------------------------------------------------------- tension field
