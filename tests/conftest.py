@@ -5,6 +5,7 @@ import pytest
 
 import flexparcel as fp
 from flexparcel.data import VERIFICATION_DIR
+from flexparcel.elements.rotations import rotation_exp
 
 REFERENCE = Path(__file__).resolve().parent / "data" / "reference"
 
@@ -118,3 +119,24 @@ def snapshot_dir(tmp_path_factory) -> Path:
     out = d / "consignment_small"
     assert main(["assemble", str(example), "--out", str(out), "--no-progress"]) == 0
     return d
+
+
+def fd_wrt_nodes(func, x, rot, eps):
+    """Central differences (step ``eps``) of func(x, rot) (an array) with respect to the 18
+    triangle DOFs: node translations and spatial spins R -> exp(+-eps e_i) R; shape
+    (func size, 18)."""
+    cols = []
+    for a in range(3):
+        for kind in ("x", "spin"):
+            for i in range(3):
+                xp, xm, rp, rm = x.copy(), x.copy(), rot.copy(), rot.copy()
+                if kind == "x":
+                    xp[a, i] += eps
+                    xm[a, i] -= eps
+                else:
+                    e = np.zeros(3)
+                    e[i] = eps
+                    rp[a] = rotation_exp(e) @ rot[a]
+                    rm[a] = rotation_exp(-e) @ rot[a]
+                cols.append((np.atleast_1d(func(xp, rp)) - np.atleast_1d(func(xm, rm))) / (2 * eps))
+    return np.column_stack(cols)

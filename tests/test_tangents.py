@@ -7,7 +7,7 @@ relative (of the largest entry) shows the analytic/complex-step tangent is the t
 
 import numpy as np
 
-from conftest import strip_model
+from conftest import fd_wrt_nodes, strip_model
 from flexparcel.elements import shell
 from flexparcel.elements.rotations import rotation_exp, rotation_log, tangent, tangent_inv
 from flexparcel.integrate import assembly as asm
@@ -35,26 +35,6 @@ def _forces(tris, kl, xloc, frames, beta, x, rot, vel):
     return out.ravel()
 
 
-def _fd_wrt_nodes(func, x, rot):
-    """Central differences of func(x, rot) (an array) with respect to the 18 triangle DOFs:
-    node translations and spatial spins R -> exp(+-eps e_i) R; shape (func size, 18)."""
-    cols = []
-    for a in range(3):
-        for kind in ("x", "spin"):
-            for i in range(3):
-                xp, xm, rp, rm = x.copy(), x.copy(), rot.copy(), rot.copy()
-                if kind == "x":
-                    xp[a, i] += EPS
-                    xm[a, i] -= EPS
-                else:
-                    e = np.zeros(3)
-                    e[i] = EPS
-                    rp[a] = rotation_exp(e) @ rot[a]
-                    rm[a] = rotation_exp(-e) @ rot[a]
-                cols.append((np.atleast_1d(func(xp, rp)) - np.atleast_1d(func(xm, rm))) / (2 * EPS))
-    return np.column_stack(cols)
-
-
 def test_shell_force_is_gradient_of_strain_energy():
     frames, xloc, kl, x, rot, _ = _random_triangle_state(0)
     tris = np.array([[0, 1, 2]])
@@ -67,7 +47,7 @@ def test_shell_force_is_gradient_of_strain_energy():
             tris, kl, xloc, frames, np.zeros(1), _TF0, xx, rr, zero, np.zeros((3, 6))
         )
 
-    g = _fd_wrt_nodes(energy, x, rot)[0]
+    g = fd_wrt_nodes(energy, x, rot, EPS)[0]
     assert np.abs(out.ravel() - g).max() <= RTOL * np.abs(g).max()
 
 
@@ -82,7 +62,9 @@ def test_shell_stiffness_and_damping_tangents_match_finite_differences():
     )
     k = dk[:324].reshape(18, 18)
     c = dc[:324].reshape(18, 18)
-    kfd = _fd_wrt_nodes(lambda xx, rr: _forces(tris, kl, xloc, frames, beta, xx, rr, vel), x, rot)
+    kfd = fd_wrt_nodes(
+        lambda xx, rr: _forces(tris, kl, xloc, frames, beta, xx, rr, vel), x, rot, EPS
+    )
     cfd = np.zeros((18, 18))
     for j in range(18):
         vp, vm = vel.copy(), vel.copy()
