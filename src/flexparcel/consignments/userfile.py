@@ -147,12 +147,11 @@ def load_consignment_file(path: str | Path) -> ConsignmentBuild:
 
 def _material_overrides(base: PackagingMaterial, table: object, path: Path) -> PackagingMaterial:
     """``base`` with the ``[material]`` table's values (file units) converted to SI."""
+    allowed = [*MATERIAL_KEYS, MEMBRANE_KEY]
     if not isinstance(table, dict):
         raise ConsignmentFileError(
-            f"{path}: material must be a table ([material] with "
-            f"{', '.join([*MATERIAL_KEYS, MEMBRANE_KEY])})"
+            f"{path}: material must be a table ([material] with {', '.join(allowed)})"
         )
-    allowed = [*MATERIAL_KEYS, MEMBRANE_KEY]
     unknown = sorted(set(table) - set(allowed))
     if unknown:
         raise ConsignmentFileError(
