@@ -156,6 +156,12 @@ def test_multifidelity_report_shows_both_rmses(multifidelity_run):
     html = (tmp / "o" / "report.html").read_text()
     assert "co-kriging" in html and "high-only" in html
     assert "log" in html  # the second swing's transform is stated
+    # summary.json counts the finished runs per fidelity level: 16 screening and 2 x 40
+    # design runs low, 2 x 8 design runs and the 2 validation runs high
+    counts = json.loads((tmp / "o" / "summary.json").read_text())["run_counts"]
+    done = counts["done_by_level_and_stage"]
+    assert done["low"] == {"screening": 16, "design": 80}
+    assert done["high"] == {"design-high": 16, "validation": 2}
 
 
 BASE = (ROOT / "tests" / "test_calibration_study.py").read_text().split('BASE = """')[1]

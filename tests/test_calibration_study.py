@@ -109,6 +109,21 @@ def write(tmp_path: Path, text: str) -> Path:
             r"\[experiments\.swing\] simulator: missing",
         ),
         ("bounds = [1e-4, 5e-3]", "bounds = [1e-4, 5e-3", r"malformed TOML"),
+        (
+            "second_swing_mm = 35.0",
+            'second_swing_mm = { value = 35.0, label = "2nd swing" }',
+            r"\[experiments\.swing\.targets\.second_swing_mm\] label: must be a name",
+        ),
+        (
+            "second_swing_mm = 35.0",
+            'second_swing_mm = { value = 35.0, label = "first_swing_mm" }',
+            r"targets: two targets are named 'first_swing_mm' in the summary",
+        ),
+        (
+            "second_swing_mm = 35.0",
+            'second_swing_mm = { value = 35.0, reference = "27" }',
+            r"\[experiments\.swing\.targets\.second_swing_mm\] reference: must be a number",
+        ),
     ],
 )
 def test_bad_study_files_name_the_field(tmp_path, old, new, message):
@@ -244,6 +259,48 @@ def test_example_calibration_recovers_the_truth(example_run):
     rows = results["validation"]["rows"]
     assert len(rows) == 4 and all(r["status"] == "done" for r in rows)
     assert all(r["within_spread"] for r in rows), rows
+
+
+def test_example_summary_holds_the_optimum_and_the_validation(example_run):
+    tmp, _, results = example_run
+    summary = json.loads((tmp / "out" / "summary.json").read_text())
+    opt = results["optimise"]
+    assert summary["optimum"] == {n: opt["optimum"][n] for n in opt["calibrated"]}
+    assert summary["frozen"] == {"friction": 0.3, "label_mass": 5.0}
+    assert summary["parameter_units"]["youngs_modulus"] == "MPa"
+    val = summary["validation"]
+    # each target once, by its response's name (no two experiments share one here)
+    assert set(val) == {"first_swing_mm", "second_swing_mm", "rebound_mm", "peak_force_N"}
+    for row in results["validation"]["rows"]:
+        v = val[row["response"]]
+        assert (v["simulated"], v["target"]) == (row["simulated"], row["target"])
+        assert math.isclose(v["rel_error"], (v["simulated"] - v["target"]) / v["target"])
+        assert "reference" not in v  # the example's targets give none
+    counts = summary["run_counts"]
+    with StudyStore(tmp / "s.sqlite") as store:
+        assert counts["by_status"] == store.status_counts()
+        runs = store.all_runs()
+    done = counts["done_by_level_and_stage"]["single"]
+    assert done["validation"] == 2 and done["screening"] == 64 and done["design"] == 30 + 40
+    walls = [r["wall_s"] for r in runs if r["status"] == "done"]
+    assert math.isclose(summary["wall_s"]["runs"], sum(walls))
+    assert summary["wall_s"]["elapsed"] > 0
+
+
+def test_summary_names_tell_equal_responses_apart():
+    from flexparcel.calibration.study import summary_names
+
+    study = load_study(ROOT / "examples" / "kpbw_campaign.toml")
+    names = summary_names(study.experiments.values())
+    assert sorted(names.values()) == [
+        "first_swing_mm", "rebound_horizontal_mm", "rebound_vertical_mm", "second_swing_mm"
+    ]  # fmt: skip
+    assert study.reference_name == "table7"
+    refs = {names[(t.experiment, t.response)]: t.reference
+            for e in study.experiments.values() for t in e.targets}  # fmt: skip
+    # Table 7 of the paper: the RecurDyn model's responses at Table 6
+    assert refs == {"first_swing_mm": 128.0, "second_swing_mm": 27.0,
+                    "rebound_vertical_mm": 6.2, "rebound_horizontal_mm": 4.5}  # fmt: skip
 
 
 def test_example_report_and_resumed_stages(example_run, capsys):

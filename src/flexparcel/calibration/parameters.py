@@ -224,6 +224,13 @@ class Target:
         How the surrogate models the response: ``"none"``, or ``"log"`` for
         ``log(y + log_offset)`` (a response spanning decades or approaching zero). The
         optimisation and the report stay in the response's own units.
+    label:
+        Name of the response in ``summary.json``. Default: ``response``, or
+        ``experiment.response`` where two experiments target the same response (the drops'
+        ``rebound_mm``).
+    reference:
+        A published model's value of the response (the paper's Table 7), reported next to the
+        validation run; informative only, never fitted.
     """
 
     experiment: str
@@ -234,6 +241,8 @@ class Target:
     unit: str = ""
     transform: str = "none"
     log_offset: float = 0.0
+    label: str | None = None
+    reference: float | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.value, (int, float)) or not math.isfinite(self.value):
@@ -256,6 +265,10 @@ class Target:
         if not (math.isfinite(self.log_offset) and self.log_offset >= 0):
             raise ValueError(
                 f"target {self.experiment}.{self.response}: log_offset must be a number >= 0"
+            )
+        if self.reference is not None and not math.isfinite(self.reference):
+            raise ValueError(
+                f"target {self.experiment}.{self.response}: reference must be a finite number"
             )
 
     @property

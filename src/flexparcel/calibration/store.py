@@ -325,6 +325,11 @@ class StudyStore:
         ).fetchall()
         return [r[0] for r in rows]
 
+    def stage_keys(self) -> list[tuple[str, str]]:
+        """(stage, run key) of every design point; a run in two stages' designs appears twice."""
+        rows = self._conn.execute("SELECT DISTINCT stage, run_key FROM design_points").fetchall()
+        return [(r[0], r[1]) for r in rows]
+
     def delete_design(self, stage: str, experiment: str | None = None) -> None:
         """Forget a design's points (and the stage's results); the runs themselves are kept."""
         with self.transaction() as c:

@@ -137,6 +137,8 @@ class StudyConfig:
     threads: int = 1
     scheduler: str | None = None
     validate: bool = True
+    #: What the targets' ``reference`` values are called in ``summary.json`` (e.g. "table7").
+    reference_name: str = "reference"
     #: Fidelity levels: ``{"low": setup, "high": setup}``, or None for a single-fidelity study.
     fidelity: Mapping[str, Mapping] | None = None
 
@@ -219,6 +221,9 @@ class _Fields:
             self.fail(key, "must be a list of strings")
         return v
 
+
+# the keys of a response's row in summary.json: the reference's name must not shadow one
+_SUMMARY_ROW_KEYS = ("simulated", "target", "rel_error", "unit", "experiment", "response")
 
 _TOP_KEYS = (
     "version",
@@ -371,7 +376,20 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
                 op.fail(
                     "parameters", f"unknown parameter {p!r} (defined: {', '.join(space.names)})"
                 )
-    va = _Fields(path, "validation", top.get("validation", "table", {}), ("enabled",))
+    va = _Fields(
+        path, "validation", top.get("validation", "table", {}), ("enabled", "reference_name")
+    )
+    reference_name = va.get("reference_name", "str", "reference")
+    if not reference_name.isidentifier() or reference_name in _SUMMARY_ROW_KEYS:
+        va.fail(
+            "reference_name",
+            f"must be a name of letters, digits and '_' other than {', '.join(_SUMMARY_ROW_KEYS)},"
+            f" got {reference_name!r}",
+        )
+    try:
+        summary_names(experiments.values())
+    except ValueError as exc:
+        _Fields(path, "experiments", {}, ()).fail("targets", str(exc))
     fidelity = _parse_fidelity(path, top, experiments)
     # The optimiser searches where every experiment that varies a parameter has data.
     for p in space.names:
@@ -407,6 +425,7 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
         threads=threads,
         scheduler=ex.get("scheduler", "str"),
         validate=va.get("enabled", "bool", True),
+        reference_name=reference_name,
         fidelity=fidelity,
     )
 
@@ -551,7 +570,7 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
             path,
             f"{t}.targets.{rname}",
             tdata,
-            ("value", "weight", "spread", "unit", "transform", "log_offset"),
+            ("value", "weight", "spread", "unit", "transform", "log_offset", "label", "reference"),
         )
         value = tf.get("value", "num", required=True)
         weight = tf.get("weight", "num")
@@ -568,6 +587,10 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
             tf.fail("log_offset", "must be >= 0 (log(y + log_offset) is modelled)")
         if "log_offset" in tdata and transform != "log":
             tf.fail("log_offset", "only a transform = 'log' takes a log_offset")
+        label = tf.get("label", "str")
+        if label is not None and not label.isidentifier():
+            tf.fail("label", f"must be a name of letters, digits and '_', got {label!r}")
+        reference = tf.get("reference", "num")
         targets.append(
             Target(
                 ename,
@@ -578,6 +601,8 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
                 unit=tf.get("unit", "str", ""),
                 transform=transform,
                 log_offset=log_offset,
+                label=label,
+                reference=None if reference is None else float(reference),
             )
         )
     monitor = tuple(f.str_list("monitor", []))
@@ -638,6 +663,25 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
 
 
 # -- pipeline --------------------------------------------------------------------------------
+
+
+def summary_names(experiments) -> dict[tuple[str, str], str]:
+    """(experiment, response) -> the target's name in ``summary.json``: its ``label``; else the
+    response's name where no other experiment targets it, else ``experiment.response``."""
+    targets = [t for e in experiments for t in e.targets]
+    count: dict[str, int] = {}
+    for t in targets:
+        count[t.response] = count.get(t.response, 0) + 1
+    names: dict[tuple[str, str], str] = {}
+    for t in targets:
+        if t.label:
+            name = t.label
+        else:
+            name = t.response if count[t.response] == 1 else f"{t.experiment}.{t.response}"
+        if name in names.values():
+            raise ValueError(f"two targets are named {name!r} in the summary; label one of them")
+        names[(t.experiment, t.response)] = name
+    return names
 
 
 def _seed(*parts) -> int:
@@ -1328,10 +1372,13 @@ class Study:
         return result
 
     def report(self) -> Path:
-        """Write ``results.json`` and ``report.html`` into the output folder; returns the HTML."""
+        """Write ``results.json``, ``summary.json`` and ``report.html`` into the output
+        folder; returns the HTML."""
         from flexparcel.calibration.report import write_report
+        from flexparcel.calibration.summary import write_summary
 
         with _blas_threads(self.config.threads):
+            write_summary(self)
             return write_report(self)
 
     def reset(self, stage: str) -> None:
