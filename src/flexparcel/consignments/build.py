@@ -50,6 +50,7 @@ __all__ = [
     "preset",
     "add_consignment",
     "add_ground_contact",
+    "add_air_drag",
     "default_packaging_content_law",
 ]
 
@@ -207,6 +208,8 @@ class Consignment:
     """Content length, width, height [m]."""
     glue: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     """KP: bottom-layer nodes tied to the content (FDR glue stripe)."""
+    top_quads: np.ndarray = field(default_factory=lambda: np.zeros((0, 4), np.int64))
+    """The top layer's shell quads (q, 4), node ids: the envelope's face for air drag."""
 
     @property
     def node_ids(self) -> np.ndarray:
@@ -331,7 +334,21 @@ def add_consignment(
         contact_radius=t / 2,
         content_box=(lc, wc, hc),
         glue=glue,
+        top_quads=ids[quads[np.isin(quads, top_ids).any(axis=1)]],
     )
+
+
+def add_air_drag(b: ModelBuilder, c: Consignment, drag_coefficient: float) -> None:
+    """Quadratic air drag (:class:`flexparcel.elements.air.AirDrag`) on consignment ``c``.
+
+    The flat envelope moves through the air as one plate: the drag acts on its top layer
+    alone, with the plate's ``drag_coefficient`` C_d (a flat plate normal to the flow:
+    1.17); on both layers it would count the plate twice. The glued strip is left out."""
+    from flexparcel.elements.air import AirDrag
+    from flexparcel.model.mesh import quads_to_triangles
+
+    tri, weights = quads_to_triangles(c.top_quads)
+    b.add_element_group(AirDrag(tri, weights, drag_coefficient=drag_coefficient))
 
 
 def add_ground_contact(b: ModelBuilder, c: Consignment, plane: int, law: ContactLaw) -> None:

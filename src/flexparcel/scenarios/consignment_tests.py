@@ -35,7 +35,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from flexparcel.builder import ModelBuilder
-from flexparcel.consignments.build import Consignment, add_consignment, add_ground_contact
+from flexparcel.consignments.build import (
+    Consignment,
+    add_air_drag,
+    add_consignment,
+    add_ground_contact,
+)
 from flexparcel.consignments.snapshot import Snapshot, place_snapshot
 from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
@@ -169,6 +174,7 @@ def _builder(
     stick_model: bool,
     gravity: float = 9.81,
     mass_damping: float = 0.0,
+    air_drag: float = 0.0,
 ) -> tuple[ModelBuilder, Consignment]:
     mat = replace(
         snapshot.build.material,
@@ -179,6 +185,8 @@ def _builder(
     content_law, _ = _laws(p, stick_model)
     b = ModelBuilder(gravity=(0.0, 0.0, -gravity), mass_damping=mass_damping)
     c = add_consignment(b, build, content_law=content_law)
+    if air_drag > 0.0:
+        add_air_drag(b, c, air_drag)
     return b, c
 
 
@@ -243,21 +251,24 @@ def swing_model(
     clamped_length: float = 0.020,
     stick_model: bool = True,
     jaws: JawClosing | None = JAWS,
+    air_drag: float = 0.0,
 ) -> TestModel:
     """The swing test's model: ``clamped_length`` [m] of the length (the -x end, both
     layers) clamped, the rest free under gravity; ``parameters`` as :func:`parse_assignments`
     returns them (paper units). ``jaws``: close the clamp as a pair of flat jaws first
-    (:mod:`flexparcel.scenarios.swing_jaws`); None clamps the nodes where they settled."""
+    (:mod:`flexparcel.scenarios.swing_jaws`); None clamps the nodes where they settled.
+    ``air_drag``: the envelope's drag coefficient in still air (:func:`add_air_drag`; 0, the
+    paper's model: none) while it swings; the jaws close without it."""
 
-    def clamped_model(gravity: float, mass_damping: float = 0.0):
-        b, c = _builder(snapshot, parameters, stick_model, gravity, mass_damping)
+    def clamped_model(gravity: float, mass_damping: float = 0.0, drag: float = 0.0):
+        b, c = _builder(snapshot, parameters, stick_model, gravity, mass_damping, drag)
         x = snapshot.positions[c.packaging, 0]
         x_clamp = float(x.min() + clamped_length)
         clamped = c.packaging[x <= x_clamp + 1e-9]
         b.clamp(clamped)
         return b.finalize(), c, clamped, x_clamp
 
-    model, c, clamped, x_clamp = clamped_model(9.81)
+    model, c, clamped, x_clamp = clamped_model(9.81, 0.0, air_drag)
     state0 = place_snapshot(snapshot, model)
     if jaws is None:
         return TestModel(model, c, state0, x_clamp)
@@ -277,13 +288,15 @@ def swing_test(
     progress: Callable[[float, float], None] | None = None,
     stick_model: bool = True,
     jaws: JawClosing | None = JAWS,
+    air_drag: float = 0.0,
 ) -> TestRun:
     """Clamp ``clamped_length`` [m] of the length (the -x end, both layers; closed as flat
     jaws first unless ``jaws`` is None, see :func:`swing_model`), release the horizontal
-    consignment under gravity for ``t_end`` [s]. The wall time includes the jaw closing."""
+    consignment under gravity for ``t_end`` [s]. The wall time includes the jaw closing.
+    ``air_drag``: drag coefficient of the envelope in still air (0: none, the paper's model)."""
     p = parse_assignments(parameters)
     tm = swing_model(snapshot, p, clamped_length=clamped_length, stick_model=stick_model,
-                     jaws=jaws)  # fmt: skip
+                     jaws=jaws, air_drag=air_drag)  # fmt: skip
     res, wall = _run(tm.model, tm.state0, t_end, dt_out, options or swing_options(), progress)
     wall += tm.preparation.get("jaw_closing", {}).get("wall_s", 0.0)
     free_end = res.positions[:, tm.consignment.edge, 0].mean(axis=1)
@@ -323,14 +336,15 @@ def drop_model(
     *,
     drop_height: float = 0.200,
     stick_model: bool = True,
+    air_drag: float = 0.0,
 ) -> TestModel:
     """The drop test's model: the consignment at rest with its lowest point ``drop_height``
     [m] above a rigid plate (z = 0), lying flat ("horizontal") or standing on its +x edge
     ("vertical", KP/BW's glued strip, with a line contact of that edge against the plate);
-    ``parameters`` in paper units."""
+    ``parameters`` in paper units; ``air_drag`` as for :func:`swing_model`."""
     if orientation not in ("horizontal", "vertical"):
         raise ValueError(f"orientation must be 'horizontal' or 'vertical', got {orientation!r}")
-    b, c = _builder(snapshot, parameters, stick_model)
+    b, c = _builder(snapshot, parameters, stick_model, air_drag=air_drag)
     _, ground = _laws(parameters, stick_model)
     plate = b.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
     thickness = 2.0 * c.contact_radius
@@ -367,12 +381,15 @@ def drop_test(
     options: IntegratorOptions | None = None,
     progress: Callable[[float, float], None] | None = None,
     stick_model: bool = True,
+    air_drag: float = 0.0,
 ) -> TestRun:
     """Release the consignment from rest with its lowest point ``drop_height`` [m] above a
     rigid plate (z = 0): lying flat ("horizontal") or standing on its +x edge ("vertical",
-    KP/BW's glued strip, with a line contact of that edge against the plate)."""
+    KP/BW's glued strip, with a line contact of that edge against the plate). ``air_drag``:
+    drag coefficient of the envelope in still air (0: none, the paper's model)."""
     p = parse_assignments(parameters)
-    tm = drop_model(snapshot, orientation, p, drop_height=drop_height, stick_model=stick_model)
+    tm = drop_model(snapshot, orientation, p, drop_height=drop_height, stick_model=stick_model,
+                    air_drag=air_drag)  # fmt: skip
     res, wall = _run(tm.model, tm.state0, t_end, dt_out, options, progress)
     gap, _ = camera_clearance(tm.model, res, tm.consignment, touch_radius=tm.reference)
     rise = com_rise(tm.model, res, tm.consignment, touch_radius=tm.reference)
