@@ -109,3 +109,26 @@ def test_a_plate_falling_edge_on_feels_no_drag():
 def test_bad_input_names_the_field(kwargs, message):
     with pytest.raises(ValueError, match=message):
         AirDrag(np.array([[0, 1, 2]]), **kwargs)
+
+
+def test_the_tests_put_the_drag_on_the_envelope_face_once(snapshot_dir):
+    # a swing or drop with air_drag gets one AirDrag group over the top layer: its weighted
+    # triangle area is the envelope's face (one plate), not both layers
+    from flexparcel.consignments.snapshot import load_snapshot
+    from flexparcel.model.mesh import triangle_areas
+    from flexparcel.scenarios.registry import get_scenario
+
+    snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
+    for name in ("swing", "drop-horizontal"):
+        scenario = get_scenario(name, air_drag=1.17)
+        assert scenario._settings()["air_drag"] == 1.17
+        model = scenario.build(snap, {}).model
+        air = [g for g in model.element_groups if isinstance(g, AirDrag)]
+        assert len(air) == 1 and air[0].drag_coefficient == 1.17
+        area = float((air[0].weights * triangle_areas(model.positions0, air[0].triangles)).sum())
+        length, width = snap.build.flat_size
+        # the top layer's reference mesh: the flat size, its border ring sloping up to the
+        # initial 2 mm gap (a few per mille more)
+        assert length * width <= area < 1.01 * length * width
+        without = get_scenario(name).build(snap, {}).model
+        assert not any(isinstance(g, AirDrag) for g in without.element_groups)

@@ -209,6 +209,10 @@ CASES: list[Case] = [
          r"error: snapshot not found: .*snapshot\.npz",
          _cli_case(lambda tmp: ["run", "swing", "--snapshot", str(tmp / "snapshot.npz"),
                                 "--out", str(tmp / "out")], C), 2),  # fmt: skip
+    Case("`flexparcel run swing --air-drag -1`",
+         r"run: error: air_drag \(drag coefficient C_d\) must be in \[0, 5\], got -1\.0",
+         _cli_case(lambda tmp: ["run", "swing", "--consignment", "KPBW", "--air-drag", "-1",
+                                "--out", str(tmp / "out")], C), 2),  # fmt: skip
     Case("a consignment file that is not valid TOML",
          r"assemble: error: .*bag\.toml: not valid TOML", _cli_case(_bad_toml, C), 2),
     Case("`--scene FILE.toml` that is not valid TOML",

@@ -77,6 +77,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="simulated time [s] (default 1.4 swing, 0.3 drops)")  # fmt: skip
     p.add_argument("--element-size", type=float, default=None, metavar="MM",
                    help="shell edge length [mm] (must match --snapshot's)")  # fmt: skip
+    p.add_argument("--air-drag", type=float, default=None, metavar="CD",
+                   help="swing and drops: drag coefficient of the envelope in still air "
+                   "(a flat plate: 1.17); default none, as the paper's model")  # fmt: skip
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     g = p.add_argument_group("conveyor")
@@ -172,8 +175,12 @@ def run(args: argparse.Namespace) -> int:
     from flexparcel.scenarios.registry import get_scenario
 
     if args.test == "conveyor":
+        if args.air_drag is not None:
+            raise ValueError("--air-drag applies to the swing and the drops, not the conveyor")
         return _run_conveyor(args)
-    scenario = get_scenario(args.test)  # an unknown name fails here, listing the known ones
+    get_scenario(args.test)  # an unknown name fails here, listing the known ones
+    options = {} if args.air_drag is None else {"air_drag": args.air_drag}
+    scenario = get_scenario(args.test, **options)
     given = [k for k in _CONVEYOR_ONLY if getattr(args, k, None) is not None]
     if given:
         opts = ", ".join("--" + k.replace("_", "-") for k in given)

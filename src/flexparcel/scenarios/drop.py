@@ -13,6 +13,7 @@ response; either is not reached when the run ends before the touch or before its
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -50,14 +51,16 @@ DROP_HEIGHT = 0.200
 
 
 class DropScenario(ConsignmentTest):
-    """A drop test; ``orientation`` "vertical" or "horizontal", ``drop_height`` [m]."""
+    """A drop test; ``orientation`` "vertical" or "horizontal", ``drop_height`` [m],
+    ``air_drag``: the envelope's drag coefficient in still air (default 0: none, the paper's
+    model)."""
 
     description = "drop test: released from rest 200 mm above a rigid plate (paper 3.2)"
     t_end = 0.3
     dt_out = 0.001  # the impact lasts a few ms
 
     def __init__(self, orientation: str, *, drop_height: float = DROP_HEIGHT,
-                 stick_model: bool = True):  # fmt: skip
+                 stick_model: bool = True, air_drag: float = 0.0):  # fmt: skip
         if orientation not in ("vertical", "horizontal"):
             raise ValueError(f"orientation must be 'vertical' or 'horizontal', got {orientation!r}")
         if not 0.0 < drop_height <= 10.0:
@@ -66,20 +69,24 @@ class DropScenario(ConsignmentTest):
         self.name = f"drop-{orientation}"
         self.drop_height = float(drop_height)
         self.stick_model = bool(stick_model)
+        if not (math.isfinite(air_drag) and 0.0 <= air_drag <= 5.0):
+            raise ValueError(f"air_drag (drag coefficient C_d) must be in [0, 5], got {air_drag!r}")
+        self.air_drag = float(air_drag)
 
     def build(self, consignment: Snapshot | Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip
         snap = single_snapshot(consignment, self.name)
         return drop_model(snap, self.orientation, self.resolve(parameters, snap.build),
-                          drop_height=self.drop_height, stick_model=self.stick_model)  # fmt: skip
+                          drop_height=self.drop_height, stick_model=self.stick_model,
+                          air_drag=self.air_drag)  # fmt: skip
 
     def _settings(self) -> dict:
-        return {"drop_height_m": self.drop_height}
+        return {"drop_height_m": self.drop_height, "air_drag": self.air_drag}
 
     def _test_run(self, snapshot, parameters, t_end, dt_out, progress) -> TestRun:
         return drop_test(snapshot, self.orientation, parameters, t_end=t_end, dt_out=dt_out,
                          drop_height=self.drop_height, progress=progress,
-                         stick_model=self.stick_model)  # fmt: skip
+                         stick_model=self.stick_model, air_drag=self.air_drag)  # fmt: skip
 
     def responses(self, result: ScenarioResult) -> dict[str, Response]:
         run: TestRun = result.record

@@ -14,8 +14,9 @@ finite-element code itself. Each runs its scenario (:mod:`flexparcel.scenarios.r
   PB, KP, BW, or a consignment TOML file), ``element_size_mm`` (default: the consignment's),
   ``snapshot`` (a snapshot ``.npz`` to start from; default: the cached assembly in
   ``snapshot_dir``, assembled on first use), ``snapshot_dir`` (default ``snapshots``),
-  ``t_end_s`` (simulated time; default: the scenario's). Relative paths are taken from the
-  working directory of ``flexparcel calibrate``.
+  ``t_end_s`` (simulated time; default: the scenario's), ``air_drag`` (the envelope's drag
+  coefficient in still air; default 0, none, as the paper's model). Relative paths are
+  taken from the working directory of ``flexparcel calibrate``.
 * returns the scenario's responses in mm (``first_swing_mm``, ``second_swing_mm``;
   ``rebound_mm`` and ``com_rise_mm``; for the conveyor per consignment exit times and
   positions). A paper response the run did not reach fails the run with the scenario's
@@ -71,7 +72,7 @@ def scenario_snapshot(
     return snap
 
 
-_SETUP = {"consignment", "element_size_mm", "snapshot", "snapshot_dir", "t_end_s"}
+_SETUP = {"consignment", "element_size_mm", "snapshot", "snapshot_dir", "t_end_s", "air_drag"}
 _CONVEYOR_SETUP = {"consignments", "element_size_mm", "snapshot_dir", "t_end_s", "workers"}
 
 
@@ -99,7 +100,8 @@ def _run(name: str, params: Mapping[str, float], setup: Mapping[str, object]) ->
     _check_setup(name, setup, _SETUP)
     if "consignment" not in setup and "snapshot" not in setup:
         raise ValueError(f"{name}: the setup needs 'consignment' (a preset or a TOML file)")
-    scenario = get_scenario(name)
+    scenario = get_scenario(name, **({"air_drag": float(setup["air_drag"])}
+                                     if "air_drag" in setup else {}))  # fmt: skip
     _check_parameters(name, scenario, params)
     scenario.resolve(dict(params))  # values against their ranges, before any assembly
     snap = scenario_snapshot(

@@ -10,6 +10,7 @@ reach is reported as not reached. Files: see
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import asdict
 from typing import TYPE_CHECKING, Any
@@ -39,7 +40,9 @@ CLAMPED_LENGTH = 0.020
 
 class SwingScenario(ConsignmentTest):
     """The swing test; ``clamped_length`` [m] (default the paper's 20 mm); ``jaws``: how the
-    clamp closes before the release (None: clamped where the nodes settled)."""
+    clamp closes before the release (None: clamped where the nodes settled); ``air_drag``:
+    the envelope's drag coefficient in still air (default 0: none, the paper's model; see
+    :func:`flexparcel.consignments.build.add_air_drag`)."""
 
     name = "swing"
     description = "swing test: 20 mm of the length clamped, released horizontal (paper 3.2)"
@@ -47,9 +50,13 @@ class SwingScenario(ConsignmentTest):
     dt_out = 0.005  # the swing takes ~1 s: 5 ms frames draw it smoothly
 
     def __init__(self, *, clamped_length: float = CLAMPED_LENGTH, stick_model: bool = True,
-                 jaws: JawClosing | None = JAWS):  # fmt: skip
+                 jaws: JawClosing | None = JAWS, air_drag: float = 0.0):  # fmt: skip
         if not 0.0 < clamped_length < 1.0:
             raise ValueError(f"clamped_length must be in (0, 1) m, got {clamped_length!r}")
+        if not (math.isfinite(air_drag) and 0.0 <= air_drag <= 5.0):
+            raise ValueError(f"air_drag (drag coefficient C_d) must be in [0, 5], got {air_drag!r}")
+        self.air_drag = float(air_drag)
+
         self.clamped_length = float(clamped_length)
         self.stick_model = bool(stick_model)
         self.jaws = jaws
@@ -59,16 +66,18 @@ class SwingScenario(ConsignmentTest):
         snap = single_snapshot(consignment, self.name)
         p = self.resolve(parameters, snap.build)
         return swing_model(snap, p, clamped_length=self.clamped_length,
-                           stick_model=self.stick_model, jaws=self.jaws)  # fmt: skip
+                           stick_model=self.stick_model, jaws=self.jaws,
+                           air_drag=self.air_drag)  # fmt: skip
 
     def _settings(self) -> dict:
         jaws = None if self.jaws is None else asdict(self.jaws)
-        return {"clamped_length_m": self.clamped_length, "jaws": jaws}
+        return {"clamped_length_m": self.clamped_length, "jaws": jaws,
+                "air_drag": self.air_drag}  # fmt: skip
 
     def _test_run(self, snapshot, parameters, t_end, dt_out, progress) -> TestRun:
         return swing_test(snapshot, parameters, t_end=t_end, dt_out=dt_out, progress=progress,
-                          clamped_length=self.clamped_length,
-                          stick_model=self.stick_model, jaws=self.jaws)  # fmt: skip
+                          clamped_length=self.clamped_length, stick_model=self.stick_model,
+                          jaws=self.jaws, air_drag=self.air_drag)  # fmt: skip
 
     def responses(self, result: ScenarioResult) -> dict[str, Response]:
         x_rel, _, _ = swing_curve(result.record, self.clamped_length)
