@@ -9,19 +9,16 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import signal
 import sqlite3
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-import psutil
 import pytest
 
 from flexparcel.calibration import StudyStore
-from test_worker_lifetime import _gone
+from test_worker_lifetime import kill_controller_and_check_workers
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "consignment_small.toml"
 
@@ -95,16 +92,8 @@ def test_fe_study_survives_sigkill_and_resumes_to_its_summary(tmp_path, snapshot
                 break
             time.sleep(0.5)
         assert proc.poll() is None, proc.stderr.read().decode()[-2000:]
-        workers = [p.pid for p in psutil.Process(proc.pid).children(recursive=True)]
-        assert workers
-        os.kill(proc.pid, signal.SIGKILL)  # the controller alone: its workers must follow
-        proc.wait(timeout=10)
-        assert _gone(workers, within_s=5.0), f"workers {workers} outlived their campaign"
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
+        kill_controller_and_check_workers(proc)  # the controller alone: its workers follow
 
     with StudyStore(store) as s:
         done_before = {r["run_key"] for r in s.all_runs() if r["status"] == "done"}

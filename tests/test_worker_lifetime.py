@@ -37,17 +37,10 @@ def _gone(pids: list[int], within_s: float) -> bool:
     return False
 
 
-def test_sigkill_of_the_campaign_ends_its_workers(tmp_path):
-    log = tmp_path / "calls.log"
-    study = write_study(tmp_path, setup=f'delay_s = 5.0, log_file = "{log}"', runs=6)
-    cmd = [sys.executable, "-m", "flexparcel.cli", "calibrate", str(study), "--stage",
-           "design", "--no-progress"]  # fmt: skip
-    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)  # fmt: skip
+def kill_controller_and_check_workers(proc: subprocess.Popen) -> None:
+    """SIGKILL the campaign's controller alone (not its process group) and assert that its
+    worker processes end too; whatever is left of the group is killed afterwards."""
     try:
-        deadline = time.time() + 60
-        while time.time() < deadline and len(read_log(log)[0]) < 2:  # two runs started
-            time.sleep(0.05)
         workers = [p.pid for p in psutil.Process(proc.pid).children(recursive=True)]
         assert workers, proc.stderr.read().decode()[-2000:] if proc.poll() else "no workers"
         os.kill(proc.pid, signal.SIGKILL)  # the controller alone, not its process group
@@ -59,6 +52,21 @@ def test_sigkill_of_the_campaign_ends_its_workers(tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+def test_sigkill_of_the_campaign_ends_its_workers(tmp_path):
+    log = tmp_path / "calls.log"
+    study = write_study(tmp_path, setup=f'delay_s = 5.0, log_file = "{log}"', runs=6)
+    cmd = [sys.executable, "-m", "flexparcel.cli", "calibrate", str(study), "--stage",
+           "design", "--no-progress"]  # fmt: skip
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)  # fmt: skip
+    try:
+        deadline = time.time() + 60
+        while time.time() < deadline and len(read_log(log)[0]) < 2:  # two runs started
+            time.sleep(0.05)
+    finally:
+        kill_controller_and_check_workers(proc)
 
 
 SIMULATOR = """

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flexparcel.model.interfaces import ElementGroup
+from flexparcel.model.interfaces import TranslationalElementGroup
 
 __all__ = ["AirDrag", "AIR_DENSITY", "FLAT_PLATE_DRAG_COEFFICIENT"]
 
@@ -81,7 +81,7 @@ def _drag_kernel(tri, pos, vel, k_tri, fe, ke, ce, tangent):
                 ce[e, 3 * r : 3 * r + 3, 3 * c : 3 * c + 3] = dg_dv / 9.0
 
 
-class AirDrag(ElementGroup):
+class AirDrag(TranslationalElementGroup):
     """Quadratic pressure drag of still air on triangles (see the module docstring).
 
     ``triangles`` (m, 3): node ids of the surface, either orientation (the force does not
@@ -114,23 +114,18 @@ class AirDrag(ElementGroup):
         if w.shape != (len(tri),) or not np.all(np.isfinite(w) & (w >= 0.0)):
             raise ValueError(f"AirDrag.weights must be {len(tri)} numbers >= 0, one per triangle")
         self.weights = w
-        self.triangles = np.ascontiguousarray(tri)
+        self.cells = np.ascontiguousarray(tri)
         self.drag_coefficient = float(drag_coefficient)
         self.air_density = float(air_density)
         self.emap = np.zeros((len(tri), 9, 9), np.int64)
 
-    def element_dofs(self) -> np.ndarray:
-        m = len(self.triangles)
-        return (6 * self.triangles[:, :, None] + np.arange(3)).reshape(m, 9)
-
-    def bind(self, slots: np.ndarray) -> None:
-        self.emap = np.ascontiguousarray(slots)
+    @property
+    def triangles(self) -> np.ndarray:
+        """Node ids of the triangles, shape (m, 3)."""
+        return self.cells
 
     def lumped_mass(self, node_count: int) -> np.ndarray:
         return np.zeros((node_count, 6))
-
-    def nodes(self) -> np.ndarray:
-        return np.unique(self.triangles)
 
     def fingerprint_arrays(self) -> list[np.ndarray]:
         coefficients = np.array([self.drag_coefficient, self.air_density])
@@ -152,11 +147,3 @@ class AirDrag(ElementGroup):
             np.add.at(data_k, self.emap.ravel(), ke.ravel())
             np.add.at(data_c, self.emap.ravel(), ce.ravel())
         return 0.0  # drag stores no energy
-
-    def forces(self, positions, rotations, velocities, out) -> float:
-        return self._evaluate(positions, velocities, out, None, None)
-
-    def forces_and_tangent(
-        self, positions, rotations, velocities, out, data_k, data_c, consistent
-    ) -> float:
-        return self._evaluate(positions, velocities, out, data_k, data_c)

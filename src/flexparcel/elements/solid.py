@@ -98,7 +98,7 @@ from typing import NamedTuple
 import numba as nb
 import numpy as np
 
-from flexparcel.model.interfaces import ElementGroup
+from flexparcel.model.interfaces import TranslationalElementGroup
 from flexparcel.model.materials import validate_elastic
 
 __all__ = [
@@ -734,7 +734,7 @@ def scatter_forces(cells, fe, out):
 
 
 # --------------------------------------------------------------------------- element group
-class SolidGroup(ElementGroup):
+class SolidGroup(TranslationalElementGroup):
     """A block of co-rotational solid elements of one kind and material; 3 translational
     DOFs per node (the nodes' rotations carry nothing of it).
 
@@ -764,22 +764,12 @@ class SolidGroup(ElementGroup):
         """Raise the node ids by ``offset`` (from mesh-local to model numbering)."""
         self.cells = self.cells + int(offset)
 
-    def element_dofs(self) -> np.ndarray:
-        m, k = self.cells.shape
-        return (6 * self.cells[:, :, None] + np.arange(3)).reshape(m, 3 * k)
-
-    def bind(self, slots: np.ndarray) -> None:
-        self.emap = np.ascontiguousarray(slots)
-
     def lumped_mass(self, node_count: int) -> np.ndarray:
         mass = np.zeros((node_count, 6))
         for a in range(self.cells.shape[1]):
             np.add.at(mass[:, 0], self.cells[:, a], self.mass[:, a])
         mass[:, 1] = mass[:, 2] = mass[:, 0]
         return mass
-
-    def nodes(self) -> np.ndarray:
-        return np.unique(self.cells)
 
     def at_time(self, time: float) -> None:
         if self.growth is not None:
@@ -808,13 +798,5 @@ class SolidGroup(ElementGroup):
             # an inverted element has no meaningful force: poison the residual so the solver
             # rejects the step (and retries smaller) instead of continuing
             out[:] = np.nan
-        return float(en.sum())
-
-    def forces(self, positions, rotations, velocities, out) -> float:
-        return self._evaluate(positions, velocities, out, None, None)
-
-    def forces_and_tangent(
-        self, positions, rotations, velocities, out, data_k, data_c, consistent
-    ) -> float:
         # the material tangent in both modes (no consistent one yet, see the module docstring)
-        return self._evaluate(positions, velocities, out, data_k, data_c)
+        return float(en.sum())

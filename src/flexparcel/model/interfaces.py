@@ -25,7 +25,13 @@ import numpy as np
 # annotations as Any so that the two modules do not import each other
 Model = State = Any
 
-__all__ = ["ElementGroup", "ContactSet", "ContactContext", "ContactOutput"]
+__all__ = [
+    "ElementGroup",
+    "TranslationalElementGroup",
+    "ContactSet",
+    "ContactContext",
+    "ContactOutput",
+]
 
 
 class ElementGroup(ABC):
@@ -92,6 +98,40 @@ class ElementGroup(ABC):
     def fingerprint_arrays(self) -> list[np.ndarray]:
         """Arrays that identify the group's dynamics (a checkpoint belongs to one model)."""
         return [np.array(self.kind), self.element_dofs()]
+
+
+class TranslationalElementGroup(ElementGroup):
+    """An element group whose elements ``cells`` (m, k) carry the three translations of each
+    node (solids, air drag) and whose force and tangent come from one evaluation,
+    :meth:`_evaluate`, with the same (material) tangent for both tangent modes."""
+
+    cells: np.ndarray
+    """Node ids per element, shape (m, k)."""
+    emap: np.ndarray
+    """CSR data slot of each element matrix entry, shape (m, 3k, 3k)."""
+
+    def element_dofs(self) -> np.ndarray:
+        m, k = self.cells.shape
+        return (6 * self.cells[:, :, None] + np.arange(3)).reshape(m, 3 * k)
+
+    def bind(self, slots: np.ndarray) -> None:
+        self.emap = np.ascontiguousarray(slots)
+
+    def nodes(self) -> np.ndarray:
+        return np.unique(self.cells)
+
+    @abstractmethod
+    def _evaluate(self, positions, velocities, out, data_k, data_c) -> float:
+        """Add the forces to ``out``; with ``data_k`` (not None) also K and C; returns the
+        strain energy [J]."""
+
+    def forces(self, positions, rotations, velocities, out) -> float:
+        return self._evaluate(positions, velocities, out, None, None)
+
+    def forces_and_tangent(
+        self, positions, rotations, velocities, out, data_k, data_c, consistent
+    ) -> float:
+        return self._evaluate(positions, velocities, out, data_k, data_c)
 
 
 @dataclass
