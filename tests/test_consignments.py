@@ -341,7 +341,7 @@ def test_jaws_close_the_clamp_flat_and_leave_the_consignment_at_rest(small):
     x = small.positions[c.packaging, 0]
     clamped = c.packaging[x <= x.min() + 0.020 + 1e-9]
     settled = place_snapshot(small, tm.model).positions
-    target, z_mid = jaw_targets(c, clamped, settled, tm.model.positions0)
+    target, z_mid = jaw_targets(c, clamped, settled)
     t = 2.0 * c.contact_radius
     # the open clamp spans several film thicknesses in height, the jaws one
     assert np.ptp(settled[clamped, 2]) > 5 * t
@@ -349,23 +349,8 @@ def test_jaws_close_the_clamp_flat_and_leave_the_consignment_at_rest(small):
     z = tm.state0.positions[clamped, 2]
     assert np.isclose(z.max() - z.min(), t) and np.isclose(z.max() + z.min(), 2 * z_mid)
     assert np.allclose(tm.state0.rotations[clamped], np.eye(3), atol=1e-12)
-    # y stays; the film is flattened with its length kept: along x the clamped nodes of each
-    # layer are as far apart as in the flat stress-free reference (no crush), where their
-    # settled x, on the film inclined from the seam, are closer
-    np.testing.assert_array_equal(tm.state0.positions[clamped, 1], settled[clamped, 1])
-    ref = tm.model.positions0
-    for layer in (c.top, np.setdiff1d(c.packaging, c.top)):
-        inner = clamped[np.isin(clamped, layer) & ~np.isin(clamped, c.border)]
-        y0 = ref[inner[0], 1]
-        on = np.isin(clamped, layer) | np.isin(clamped, c.border)
-        row = clamped[on & np.isclose(ref[clamped, 1], y0, atol=1e-9)]
-        row = row[np.argsort(ref[row, 0])]  # from the end seam along x, at one y
-        assert len(row) >= 2 and row[0] in c.border
-        d_ref = np.diff(ref[row, 0])
-        # to 1 um: the seam's x is read at the node's settled y, which differs from the seam
-        # node's by the settling's sideways pull (measured 58 nm here)
-        np.testing.assert_allclose(np.diff(tm.state0.positions[row, 0]), d_ref, atol=1e-6)
-        assert np.all(np.diff(settled[row, 0]) < d_ref)
+    # x and y stay: the jaws press, they do not pull
+    np.testing.assert_array_equal(tm.state0.positions[clamped, :2], settled[clamped, :2])
     # at rest when the hold ends (measured 1.6e-8 J, against the 1.5e-4 J that a 1 mm drop
     # of the example's 15 g packaging end would give up), and released from rest
     assert tm.preparation["jaw_closing"]["kinetic_end_j"] < 1e-6

@@ -70,18 +70,12 @@ class JawClosing:
 
 
 def jaw_targets(
-    c: Consignment, clamped: np.ndarray, positions: np.ndarray, reference: np.ndarray
+    c: Consignment, clamped: np.ndarray, positions: np.ndarray
 ) -> tuple[np.ndarray, float]:
     """Positions [m] (k, 3) of the ``clamped`` nodes on the closed jaws and the jaws' mid
-    height [m]. Heights: the seam (the border shared by both layers) at the mid height, the
-    mean height of the clamped seam nodes; the top layer half a film thickness above it, the
-    bottom layer as far below, so the two layers touch at the self contact's thickness.
-
-    Lengths: the jaws flatten the film with its length kept. A node goes to the end seam's
-    settled x at its y plus its material distance from that seam, the x-distance in the flat
-    stress-free ``reference`` (n, 3) [m], where both layers lie flat over the same x. Keeping
-    the settled x instead crushed the inclined film between seam and jaw edge by its cosine
-    (KP/BW at 10 mm: -6 % strain, 0.44 J in the top layer's clamped elements). y is kept."""
+    height [m]: x and y kept; the seam (the border shared by both layers) at the mid height,
+    the mean height of the clamped seam nodes; the top layer half a film thickness above it,
+    the bottom layer as far below, so the two layers touch at the self contact's thickness."""
     seam = np.isin(clamped, c.border)
     top = np.isin(clamped, c.top) & ~seam
     z = positions[clamped, 2]
@@ -89,13 +83,6 @@ def jaw_targets(
     half = c.contact_radius  # half the film thickness
     out = positions[clamped].copy()
     out[:, 2] = z_mid + np.where(seam, 0.0, np.where(top, half, -half))
-    x_ref = reference[clamped, 0]
-    end = np.isclose(x_ref, x_ref.min(), rtol=0.0, atol=1e-9)  # the end seam's row
-    end &= seam if seam.any() else end
-    order = np.argsort(positions[clamped[end], 1])
-    y_end = positions[clamped[end], 1][order]
-    x_end = positions[clamped[end], 0][order]
-    out[:, 0] = np.interp(out[:, 1], y_end, x_end) + (x_ref - x_ref.min())
     return out, z_mid
 
 
@@ -114,7 +101,7 @@ def close_jaws(
     stepper = ModelStepper(model, replace(options or IntegratorOptions(), rho_inf=0.0))
     s = stepper.begin(state.copy())
     p0 = s.positions[clamped].copy()
-    target, _ = jaw_targets(c, clamped, s.positions, model.positions0)
+    target, _ = jaw_targets(c, clamped, s.positions)
     n = closing.increments
     # each node turns about its own fixed axis to R = I: 1/n of its rotation vector a time
     turn = -rotation_vectors(np.ascontiguousarray(s.rotations[clamped])) / n
