@@ -288,7 +288,7 @@ def test_example_summary_holds_the_optimum_and_the_validation(example_run):
 
 
 def test_summary_names_tell_equal_responses_apart():
-    from flexparcel.calibration.study import summary_names
+    from flexparcel.calibration.summary import summary_names
 
     study = load_study(ROOT / "examples" / "kpbw_campaign.toml")
     names = summary_names(study.experiments.values())

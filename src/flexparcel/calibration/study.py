@@ -386,6 +386,8 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
             f"must be a name of letters, digits and '_' other than {', '.join(_SUMMARY_ROW_KEYS)},"
             f" got {reference_name!r}",
         )
+    from flexparcel.calibration.summary import summary_names
+
     try:
         summary_names(experiments.values())
     except ValueError as exc:
@@ -663,25 +665,6 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
 
 
 # -- pipeline --------------------------------------------------------------------------------
-
-
-def summary_names(experiments) -> dict[tuple[str, str], str]:
-    """(experiment, response) -> the target's name in ``summary.json``: its ``label``; else the
-    response's name where no other experiment targets it, else ``experiment.response``."""
-    targets = [t for e in experiments for t in e.targets]
-    count: dict[str, int] = {}
-    for t in targets:
-        count[t.response] = count.get(t.response, 0) + 1
-    names: dict[tuple[str, str], str] = {}
-    for t in targets:
-        if t.label:
-            name = t.label
-        else:
-            name = t.response if count[t.response] == 1 else f"{t.experiment}.{t.response}"
-        if name in names.values():
-            raise ValueError(f"two targets are named {name!r} in the summary; label one of them")
-        names[(t.experiment, t.response)] = name
-    return names
 
 
 def _seed(*parts) -> int:

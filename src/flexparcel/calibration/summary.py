@@ -5,7 +5,7 @@ campaign wants first, next to the full ``results.json`` and ``report.html``.
   for the shipped campaigns), ``frozen``: the others at their nominal values, and
   ``parameter_units``;
 * ``validation``: per target response (its summary name, see
-  :func:`flexparcel.calibration.study.summary_names`) the FE re-run at the optimum against the
+  :func:`summary_names`) the FE re-run at the optimum against the
   target: ``simulated``, ``target``, ``rel_error`` = (simulated - target) / |target|, the
   published model's value under the study's ``[validation] reference_name`` where the target
   gives a ``reference``, and ``unit``; ``simulated`` is null with ``error`` where the
@@ -24,14 +24,13 @@ from pathlib import Path
 
 from flexparcel.io.atomic import write_atomic
 
-__all__ = ["campaign_summary", "write_summary"]
+__all__ = ["campaign_summary", "write_summary", "summary_names"]
 
 
 def campaign_summary(study) -> dict:
     """The summary of ``study`` (a :class:`~flexparcel.calibration.study.Study`) from its
     store; stages not run yet are null."""
     from flexparcel._version import __version__
-    from flexparcel.calibration.study import summary_names
 
     c, store = study.config, study.store
     opt = store.get_result("optimise", "")
@@ -50,6 +49,25 @@ def campaign_summary(study) -> dict:
         "wall_s": _wall(runs),
     }
     return summary
+
+
+def summary_names(experiments) -> dict[tuple[str, str], str]:
+    """(experiment, response) -> the target's name in ``summary.json``: its ``label``; else the
+    response's name where no other experiment targets it, else ``experiment.response``."""
+    targets = [t for e in experiments for t in e.targets]
+    count: dict[str, int] = {}
+    for t in targets:
+        count[t.response] = count.get(t.response, 0) + 1
+    names: dict[tuple[str, str], str] = {}
+    for t in targets:
+        if t.label:
+            name = t.label
+        else:
+            name = t.response if count[t.response] == 1 else f"{t.experiment}.{t.response}"
+        if name in names.values():
+            raise ValueError(f"two targets are named {name!r} in the summary; label one of them")
+        names[(t.experiment, t.response)] = name
+    return names
 
 
 def write_summary(study) -> Path:
