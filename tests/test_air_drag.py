@@ -101,7 +101,7 @@ def test_a_plate_falling_edge_on_feels_no_drag():
 @pytest.mark.parametrize(
     "kwargs, message",
     [
-        ({"drag_coefficient": -1.0}, r"AirDrag.drag_coefficient must be >= 0"),
+        ({"drag_coefficient": -1.0}, r"AirDrag.drag_coefficient must be in \[0, 5\]"),
         ({"air_density": 0.0}, r"AirDrag.air_density must be > 0 kg/m\^3"),
         ({"weights": np.ones(2)}, r"AirDrag.weights must be 1 numbers >= 0"),
     ],

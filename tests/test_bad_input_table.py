@@ -210,7 +210,8 @@ CASES: list[Case] = [
          _cli_case(lambda tmp: ["run", "swing", "--snapshot", str(tmp / "snapshot.npz"),
                                 "--out", str(tmp / "out")], C), 2),  # fmt: skip
     Case("`flexparcel run swing --air-drag -1`",
-         r"run: error: air_drag \(drag coefficient C_d\) must be in \[0, 5\], got -1\.0",
+         r"run: error: air_drag \(drag coefficient C_d\) must be in \[0, 5\] \(a flat plate: "
+         r"1\.17\), got -1\.0",
          _cli_case(lambda tmp: ["run", "swing", "--consignment", "KPBW", "--air-drag", "-1",
                                 "--out", str(tmp / "out")], C), 2),  # fmt: skip
     Case("a consignment file that is not valid TOML",

@@ -222,9 +222,6 @@ class _Fields:
         return v
 
 
-# the keys of a response's row in summary.json: the reference's name must not shadow one
-_SUMMARY_ROW_KEYS = ("simulated", "target", "rel_error", "unit", "experiment", "response")
-
 _TOP_KEYS = (
     "version",
     "name",
@@ -379,14 +376,15 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
     va = _Fields(
         path, "validation", top.get("validation", "table", {}), ("enabled", "reference_name")
     )
+    from flexparcel.calibration.summary import SUMMARY_ROW_KEYS, summary_names
+
     reference_name = va.get("reference_name", "str", "reference")
-    if not reference_name.isidentifier() or reference_name in _SUMMARY_ROW_KEYS:
+    if not reference_name.isidentifier() or reference_name in SUMMARY_ROW_KEYS:
         va.fail(
             "reference_name",
-            f"must be a name of letters, digits and '_' other than {', '.join(_SUMMARY_ROW_KEYS)},"
+            f"must be a name of letters, digits and '_' other than {', '.join(SUMMARY_ROW_KEYS)},"
             f" got {reference_name!r}",
         )
-    from flexparcel.calibration.summary import summary_names
 
     try:
         summary_names(experiments.values())

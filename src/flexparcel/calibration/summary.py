@@ -24,7 +24,10 @@ from pathlib import Path
 
 from flexparcel.io.atomic import write_atomic
 
-__all__ = ["campaign_summary", "write_summary", "summary_names"]
+__all__ = ["campaign_summary", "write_summary", "summary_names", "SUMMARY_ROW_KEYS"]
+
+SUMMARY_ROW_KEYS = ("experiment", "response", "simulated", "target", "rel_error", "unit", "error")
+"""The keys of a response's row in ``validation``: the reference's name must not be one."""
 
 
 def campaign_summary(study) -> dict:

@@ -178,8 +178,8 @@ def run(args: argparse.Namespace) -> int:
         if args.air_drag is not None:
             raise ValueError("--air-drag applies to the swing and the drops, not the conveyor")
         return _run_conveyor(args)
-    get_scenario(args.test)  # an unknown name fails here, listing the known ones
     options = {} if args.air_drag is None else {"air_drag": args.air_drag}
+    # an unknown name fails here, listing the known ones
     scenario = get_scenario(args.test, **options)
     given = [k for k in _CONVEYOR_ONLY if getattr(args, k, None) is not None]
     if given:

@@ -29,9 +29,11 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from flexparcel.elements.rotations import skew
+from flexparcel.elements.solid import scatter_forces
 from flexparcel.model.interfaces import TranslationalElementGroup
 
-__all__ = ["AirDrag", "AIR_DENSITY", "FLAT_PLATE_DRAG_COEFFICIENT"]
+__all__ = ["AirDrag", "AIR_DENSITY", "FLAT_PLATE_DRAG_COEFFICIENT", "check_drag_coefficient"]
 
 AIR_DENSITY = 1.204
 """Density of dry air at 20 degC and 101.325 kPa [kg/m^3]."""
@@ -40,12 +42,19 @@ FLAT_PLATE_DRAG_COEFFICIENT = 1.17
 """Drag coefficient of a square flat plate normal to the flow (Hoerner 1965, ch. 3)."""
 
 
-@nb.njit(cache=True)
-def _skew(u):
-    s = np.zeros((3, 3))
-    s[0, 1], s[0, 2], s[1, 0] = -u[2], u[1], u[2]
-    s[1, 2], s[2, 0], s[2, 1] = -u[0], -u[1], u[0]
-    return s
+MAX_DRAG_COEFFICIENT = 5.0
+"""Largest accepted C_d: bluff bodies stay below about 2 (Hoerner 1965), 5 catches unit
+mistakes."""
+
+
+def check_drag_coefficient(value: float, what: str) -> float:
+    """``value`` as a drag coefficient in [0, 5], or ``ValueError`` naming ``what``."""
+    if not (np.isfinite(value) and 0.0 <= value <= MAX_DRAG_COEFFICIENT):
+        raise ValueError(
+            f"{what} must be in [0, {MAX_DRAG_COEFFICIENT:g}] (a flat plate: "
+            f"{FLAT_PLATE_DRAG_COEFFICIENT}), got {value!r}"
+        )
+    return float(value)
 
 
 @nb.njit(cache=True)
@@ -74,7 +83,7 @@ def _drag_kernel(tri, pos, vel, k_tri, fe, ke, ce, tangent):
             a, v - s * a / area
         )
         # da/dx of the three nodes: a = (x2 - x1) x (x3 - x1) / 2
-        da = (0.5 * (_skew(e3) - _skew(e2)), -0.5 * _skew(e3), 0.5 * _skew(e2))
+        da = (0.5 * (skew(e3) - skew(e2)), -0.5 * skew(e3), 0.5 * skew(e2))
         for r in range(3):
             for c in range(3):
                 ke[e, 3 * r : 3 * r + 3, 3 * c : 3 * c + 3] = (dg_da @ da[c]) / 3.0
@@ -103,11 +112,7 @@ class AirDrag(TranslationalElementGroup):
         tri = np.asarray(triangles, dtype=np.int64)
         if tri.ndim != 2 or tri.shape[1] != 3 or len(tri) == 0:
             raise ValueError(f"AirDrag.triangles must have shape (m, 3), m >= 1, got {tri.shape}")
-        if not (np.isfinite(drag_coefficient) and drag_coefficient >= 0.0):
-            raise ValueError(
-                "AirDrag.drag_coefficient must be >= 0 (a flat plate: 1.17), "
-                f"got {drag_coefficient!r}"
-            )
+        check_drag_coefficient(drag_coefficient, "AirDrag.drag_coefficient")
         if not (np.isfinite(air_density) and air_density > 0.0):
             raise ValueError(f"AirDrag.air_density must be > 0 kg/m^3, got {air_density!r}")
         w = np.ones(len(tri)) if weights is None else np.asarray(weights, dtype=float)
@@ -118,6 +123,8 @@ class AirDrag(TranslationalElementGroup):
         self.drag_coefficient = float(drag_coefficient)
         self.air_density = float(air_density)
         self.emap = np.zeros((len(tri), 9, 9), np.int64)
+        # rho C_d / 2 per triangle, weighted: fixed for the group's life
+        self._k_tri = 0.5 * self.air_density * self.drag_coefficient * w
 
     @property
     def triangles(self) -> np.ndarray:
@@ -132,17 +139,17 @@ class AirDrag(TranslationalElementGroup):
         return [*super().fingerprint_arrays(), coefficients, self.weights]
 
     def _evaluate(self, positions, velocities, out, data_k, data_c) -> float:
-        m = len(self.triangles)
+        m = len(self.cells)
         fe = np.empty((m, 9))
         tangent = data_k is not None
         ke = np.zeros((m, 9, 9) if tangent else (1, 9, 9))
         ce = np.zeros_like(ke)
-        k_tri = 0.5 * self.air_density * self.drag_coefficient * self.weights
         pos = np.ascontiguousarray(positions)
         vel = np.ascontiguousarray(velocities[:, :3])
-        _drag_kernel(self.triangles, pos, vel, k_tri, fe, ke, ce, tangent)
-        for n in range(3):
-            np.add.at(out[:, :3], self.triangles[:, n], fe[:, 3 * n : 3 * n + 3])
+        _drag_kernel(self.cells, pos, vel, self._k_tri, fe, ke, ce, tangent)
+        f3 = np.zeros((out.shape[0], 3))
+        scatter_forces(self.cells, fe, f3)
+        out[:, :3] += f3
         if tangent:
             np.add.at(data_k, self.emap.ravel(), ke.ravel())
             np.add.at(data_c, self.emap.ravel(), ce.ravel())

@@ -13,13 +13,13 @@ response; either is not reached when the run ends before the touch or before its
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from flexparcel.elements.air import check_drag_coefficient
 from flexparcel.scenarios.base import Response, ScenarioResult, single_snapshot
 from flexparcel.scenarios.consignment_scenario import ConsignmentTest, mm_response
 from flexparcel.scenarios.consignment_tests import (
@@ -69,9 +69,7 @@ class DropScenario(ConsignmentTest):
         self.name = f"drop-{orientation}"
         self.drop_height = float(drop_height)
         self.stick_model = bool(stick_model)
-        if not (math.isfinite(air_drag) and 0.0 <= air_drag <= 5.0):
-            raise ValueError(f"air_drag (drag coefficient C_d) must be in [0, 5], got {air_drag!r}")
-        self.air_drag = float(air_drag)
+        self.air_drag = check_drag_coefficient(air_drag, "air_drag (drag coefficient C_d)")
 
     def build(self, consignment: Snapshot | Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip

@@ -10,13 +10,13 @@ reach is reported as not reached. Files: see
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import asdict
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from flexparcel.elements.air import check_drag_coefficient
 from flexparcel.scenarios.base import Response, ScenarioResult, single_snapshot
 from flexparcel.scenarios.consignment_scenario import ConsignmentTest, mm_response
 from flexparcel.scenarios.consignment_tests import (
@@ -53,10 +53,7 @@ class SwingScenario(ConsignmentTest):
                  jaws: JawClosing | None = JAWS, air_drag: float = 0.0):  # fmt: skip
         if not 0.0 < clamped_length < 1.0:
             raise ValueError(f"clamped_length must be in (0, 1) m, got {clamped_length!r}")
-        if not (math.isfinite(air_drag) and 0.0 <= air_drag <= 5.0):
-            raise ValueError(f"air_drag (drag coefficient C_d) must be in [0, 5], got {air_drag!r}")
-        self.air_drag = float(air_drag)
-
+        self.air_drag = check_drag_coefficient(air_drag, "air_drag (drag coefficient C_d)")
         self.clamped_length = float(clamped_length)
         self.stick_model = bool(stick_model)
         self.jaws = jaws
