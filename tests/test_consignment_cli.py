@@ -266,7 +266,7 @@ def test_run_command_lists_the_jobs_tests():
 # Curves, marks and the demo report (no simulation)
 
 
-def _fake_run(x_free: np.ndarray, first: float, second: float):
+def _fake_run(x_free: np.ndarray, first: float | None, second: float | None):
     """A swing run whose free edge (node 1) follows ``x_free`` [m]; node 0 is the packaging's
     -x end at 0, so the clamp edge is at 20 mm."""
     pos = np.zeros((len(x_free), 2, 3))
@@ -275,25 +275,27 @@ def _fake_run(x_free: np.ndarray, first: float, second: float):
     return SimpleNamespace(
         result=SimpleNamespace(positions=pos),
         consignment=c,
-        responses={"first_swing_mm": first * 1e3, "second_swing_mm": second * 1e3},
-    )
+        responses={"first_swing_mm": None if first is None else first * 1e3,
+                   "second_swing_mm": None if second is None else second * 1e3},
+    )  # fmt: skip
 
 
 def test_swing_curve_marks_sit_on_the_reported_peaks():
-    from flexparcel.scenarios.consignment_tests import swing_responses
+    from flexparcel.scenarios.consignment_tests import swing_peaks
     from flexparcel.scenarios.swing import swing_curve
 
     t = np.linspace(0.0, 1.4, 281)
     # a damped pendulum-like free end: starts 0.25 m beyond the clamp edge (at 0.02 m)
     x = 0.02 + 0.25 * np.cos(2 * np.pi * t / 0.9) * np.exp(-1.2 * t)
-    first, second = swing_responses(x - 0.02)
+    first, second = swing_peaks(x - 0.02)
     x_rel, m1, m2 = swing_curve(_fake_run(x, first, second))
     assert np.allclose(x_rel, x - 0.02)
     assert m1 is not None and m2 is not None
     assert m1[0] == int(np.argmin(x_rel[: len(t) // 2 + 20])) and m1[1] == first
     assert -x_rel[m1[0]] == pytest.approx(first) and x_rel[m2[0]] == pytest.approx(second)
     assert m2[0] > m1[0] and 0 < second < first
-    _, n1, n2 = swing_curve(_fake_run(np.full(5, 0.3), 0.0, 0.0))  # never swings past
+    assert swing_peaks(np.full(5, 0.3)) == (None, None)  # never swings past: not reached
+    _, n1, n2 = swing_curve(_fake_run(np.full(5, 0.3), None, None))
     assert n1 is None and n2 is None
 
 

@@ -386,6 +386,20 @@ def test_balanced_error_estimate_ignores_contact_jumps_the_film_balances(small):
         assert np.abs(p - ref).max() < consignment_options().tol_displacement
 
 
+def test_tests_too_short_for_their_responses_report_none_with_the_reason(small):
+    """A run that ends before the response is reached says so: None and a note, never 0 (a
+    0 mm rebound or swing would read as a measurement)."""
+    drop = drop_test(small, "horizontal", drop_height=0.02, t_end=0.004, dt_out=0.002)
+    assert drop.responses == {"rebound_mm": None, "com_rise_mm": None}
+    assert "did not touch the plate" in drop.notes["rebound_mm"]
+    assert "did not touch the plate" in drop.notes["com_rise_mm"]
+    summary = drop.summary()
+    assert summary["rebound_mm"] is None and summary["notes"] == drop.notes
+    swing = swing_test(small, t_end=0.004, dt_out=0.002, jaws=None)
+    assert swing.responses == {"first_swing_mm": None, "second_swing_mm": None}
+    assert "did not swing past the clamp edge" in swing.notes["first_swing_mm"]
+
+
 @pytest.fixture(scope="module")
 def small_drop(small):
     return drop_test(small, "horizontal", drop_height=0.02, t_end=0.1)

@@ -62,7 +62,7 @@ __all__ = [
     "swing_test",
     "drop_test",
     "swing_peaks",
-    "swing_responses",
+    "SWING_NOT_REACHED",
     "com_rise_outcome",
     "camera_clearance",
     "lowest_point_gap",
@@ -143,22 +143,27 @@ def _laws(p: Mapping[str, float], stick_model: bool) -> tuple[ContactLaw, Contac
 
 @dataclass
 class TestRun:
-    """A finished test: the recorded run, its responses [mm] and what produced them."""
+    """A finished test: the recorded run, its responses [mm] and what produced them.
+    A response the record does not reach (a run too short, a swing that never passes the
+    clamp) is None, never 0, and ``notes`` says why."""
 
     test: str
     result: SimulationResult
-    responses: dict[str, float]
+    responses: dict[str, float | None]
     parameters: dict[str, float]
     model: Model
     consignment: Consignment
     wall_s: float
+    notes: dict[str, str] = field(default_factory=dict)
+    """Why a response is None, by response name."""
 
     def summary(self) -> dict:
         """``responses.json`` content: responses, ``simulated_s``, ``wall_s``, parameters."""
         return {
             "test": self.test,
             "consignment": self.consignment.build.spec.id,
-            **{k: float(v) for k, v in self.responses.items()},
+            **{k: None if v is None else float(v) for k, v in self.responses.items()},
+            "notes": dict(self.notes),
             "simulated_s": float(self.result.time[-1] - self.result.time[0]),
             "wall_s": float(self.wall_s),
             "parameters": dict(self.parameters),
@@ -300,9 +305,21 @@ def swing_test(
     res, wall = _run(tm.model, tm.state0, t_end, dt_out, options or swing_options(), progress)
     wall += tm.preparation.get("jaw_closing", {}).get("wall_s", 0.0)
     free_end = res.positions[:, tm.consignment.edge, 0].mean(axis=1)
-    first, second = swing_responses(free_end - tm.reference)
-    return TestRun("swing", res, {"first_swing_mm": first * 1e3, "second_swing_mm": second * 1e3},
-                   p, tm.model, tm.consignment, wall)  # fmt: skip
+    first, second = swing_peaks(free_end - tm.reference)
+    responses = {"first_swing_mm": _mm(first), "second_swing_mm": _mm(second)}
+    notes = {k: SWING_NOT_REACHED[k] for k, v in responses.items() if v is None}
+    return TestRun("swing", res, responses, p, tm.model, tm.consignment, wall, notes)
+
+
+def _mm(value_m: float | None) -> float | None:
+    return None if value_m is None else value_m * 1e3
+
+
+SWING_NOT_REACHED = {
+    "first_swing_mm": "the free end did not swing past the clamp edge within the run",
+    "second_swing_mm": "the free end did not swing back past the clamp edge within the run",
+}
+"""Why a swing response is not reached, by response name."""
 
 
 def swing_peaks(x_rel: np.ndarray) -> tuple[float | None, float | None]:
@@ -321,12 +338,6 @@ def swing_peaks(x_rel: np.ndarray) -> tuple[float | None, float | None]:
     first = float(d[start:end].max())
     second = float(max(0.0, (-d[end:]).max())) if end < d.size else None
     return first, second
-
-
-def swing_responses(x_rel: np.ndarray) -> tuple[float, float]:
-    """:func:`swing_peaks` with 0 for a swing the record does not reach."""
-    first, second = swing_peaks(x_rel)
-    return first or 0.0, second or 0.0
 
 
 def drop_model(
@@ -391,10 +402,12 @@ def drop_test(
     tm = drop_model(snapshot, orientation, p, drop_height=drop_height, stick_model=stick_model,
                     air_drag=air_drag)  # fmt: skip
     res, wall = _run(tm.model, tm.state0, t_end, dt_out, options, progress)
-    gap, _ = camera_clearance(tm.model, res, tm.consignment, touch_radius=tm.reference)
-    rise = com_rise(tm.model, res, tm.consignment, touch_radius=tm.reference)
-    responses = {"rebound_mm": (gap or 0.0) * 1e3, "com_rise_mm": rise * 1e3}
-    return TestRun(f"drop-{orientation}", res, responses, p, tm.model, tm.consignment, wall)
+    gap, gap_why = camera_clearance(tm.model, res, tm.consignment, touch_radius=tm.reference)
+    rise, rise_why = com_rise_outcome(tm.model, res, tm.consignment, touch_radius=tm.reference)
+    responses = {"rebound_mm": _mm(gap), "com_rise_mm": _mm(rise)}
+    notes = {k: why for k, why in (("rebound_mm", gap_why), ("com_rise_mm", rise_why)) if why}
+    return TestRun(f"drop-{orientation}", res, responses, p, tm.model, tm.consignment, wall,
+                   notes)  # fmt: skip
 
 
 def com_rise_outcome(

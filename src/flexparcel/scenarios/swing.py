@@ -21,6 +21,7 @@ from flexparcel.scenarios.base import Response, ScenarioResult, single_snapshot
 from flexparcel.scenarios.consignment_scenario import ConsignmentTest, mm_response
 from flexparcel.scenarios.consignment_tests import (
     JAWS,
+    SWING_NOT_REACHED,
     TestModel,
     TestRun,
     swing_model,
@@ -82,11 +83,11 @@ class SwingScenario(ConsignmentTest):
         return {
             "first_swing_mm": mm_response(
                 first, "peak horizontal excursion of the free end past the clamp edge",
-                "the free end did not swing past the clamp edge within the run",
+                SWING_NOT_REACHED["first_swing_mm"],
             ),
             "second_swing_mm": mm_response(
                 second, "peak horizontal excursion of the free end back on its starting side",
-                "the free end did not swing back past the clamp edge within the run",
+                SWING_NOT_REACHED["second_swing_mm"],
             ),
         }  # fmt: skip
 
@@ -106,11 +107,14 @@ def swing_curve(
     c = run.consignment
     x_clamp = pos[0, c.packaging, 0].min() + clamped_length
     x_rel = pos[:, c.edge, 0].mean(axis=1) - x_clamp
-    first = run.responses["first_swing_mm"] * 1e-3
-    second = run.responses["second_swing_mm"] * 1e-3
     marks: list[tuple[int, float] | None] = []
     start = 0
-    for value, sign in ((first, -1.0), (second, 1.0)):
+    for key, sign in (("first_swing_mm", -1.0), ("second_swing_mm", 1.0)):
+        value_mm = run.responses[key]
+        if value_mm is None:  # not reached in the run
+            marks.append(None)
+            continue
+        value = value_mm * 1e-3
         hit = np.flatnonzero(np.isclose(sign * x_rel[start:], value, rtol=1e-9, atol=1e-12))
         if value > 0 and hit.size:
             k = start + int(hit[0])
