@@ -242,11 +242,17 @@ SKEW_TOL = 1e-12
 """Relative size max |A - A^T| / max |A| below which a matrix counts as symmetric: round-off of
 the element kernels' symmetric tangents is ~1e-16."""
 
-KRYLOV_RTOL = 1e-8
+KRYLOV_RTOL = 1e-3
 """Relative residual |b - A x| / |b| to which :class:`CholmodSolver` solves a nonsymmetric
-system by GMRES preconditioned with the factor of its symmetric part. Newton judges its
-corrections at ``newton_tol * tol_displacement`` (1e-6 m by default) against increments of
-millimetres, so 1e-8 leaves the solve's error two orders below Newton's own test."""
+system by GMRES preconditioned with the factor of its symmetric part. The system is a Newton
+correction, and Newton's tests judge the iterate by its next correction and its residual, not
+by this solve: an inexact solve changes how fast Newton converges, not where it stops (inexact
+Newton, Dembo, Eisenstat & Steihaug 1982, SIAM J. Numer. Anal. 19:400, converges while the
+forcing term stays below 1). Near convergence a 1e-3 error on a correction of
+``newton_tol * tol_displacement`` (1 um) is 1 nm. Measured on the KP/BW swing at 10 mm
+(Table 6, first 0.05 s after the jaws, 6,018 DOF): 1e-8 took 185 steps, 1,192 Newton
+iterations and 55.9 s; 1e-3 took 132 steps, 883 iterations and 42.1 s, the free end 6 um from
+the 1e-8 run (the steps differ as the step control sees other Newton histories)."""
 
 KRYLOV_RESTART = 30
 """GMRES iterations before :class:`CholmodSolver` gives up on the symmetric-part preconditioner
