@@ -72,7 +72,8 @@ def test_interior_node_of_a_10_mm_mesh_gets_the_papers_per_point_stiffness():
     plane_contact_forces(
         cs.node, cs.offset, cs.radius, np.zeros(p, np.int64), np.zeros(p, np.int64), np.ones(p),
         cs.area, model.plane_point, model.plane_normal, model.plane_velocity,
-        model.contact_laws, pos, np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 6)), f,
+        model.plane_axis, model.plane_extent, model.contact_laws, pos,
+        np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 6)), f,
         np.zeros((p, 6, 6)), np.zeros((p, 6, 6)), np.ones(n), 1.0, np.zeros(1),
         np.zeros((p, 3)), np.zeros((p, 3)), 1e-3, pos, np.tile(np.eye(3), (n, 1, 1)),
     )  # fmt: skip

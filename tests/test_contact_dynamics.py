@@ -134,6 +134,8 @@ def test_contact_point_tangents_match_finite_differences():
         np.zeros((1, 3)),
         np.array([[0.0, 0.0, 1.0]]),
         np.array([[0.05, 0.0, 0.0]]),
+        np.zeros((1, 3)),
+        np.zeros((1, 3)),  # a half-space
         law.packed()[None],
     )
 

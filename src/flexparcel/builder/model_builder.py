@@ -22,7 +22,7 @@ from flexparcel.contact.edge_edge import EdgeEdgeSet
 from flexparcel.contact.edges import EdgePlaneSet
 from flexparcel.contact.faces import EdgeFaceSet, NodeFaceSet
 from flexparcel.contact.law import PACKED_SIZE, REFERENCE_AREA, REFERENCE_SPACING, ContactLaw
-from flexparcel.contact.planes import PlanePointSet
+from flexparcel.contact.planes import PlaneBounds, PlanePointSet
 from flexparcel.contact.tributary import node_areas, station_areas
 from flexparcel.elements.shell import ShellGroup
 from flexparcel.elements.solid import SolidGroup
@@ -224,9 +224,14 @@ class ModelBuilder:
         point: tuple[float, float, float],
         normal: tuple[float, float, float],
         surface_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        *,
+        bounds: PlaneBounds | None = None,
     ) -> int:
         """Add a fixed rigid plane through ``point`` [m] with ``normal`` pointing out of its
-        solid side; ``surface_velocity`` [m/s] (tangential) makes it a belt. Returns its id."""
+        solid side; ``surface_velocity`` [m/s] (tangential) makes it a belt. ``bounds``: a
+        :class:`~flexparcel.contact.planes.PlaneBounds` makes it a slab of that length and
+        width centred on ``point``, with rounded edges (default: a half-space). Returns its
+        id. Edge (line) contact takes half-spaces only."""
         p = np.asarray(point, dtype=float)
         nrm = np.asarray(normal, dtype=float)
         vel = np.asarray(surface_velocity, dtype=float)
@@ -239,7 +244,16 @@ class ModelBuilder:
         nrm = nrm / length
         if abs(vel @ nrm) > 1e-12 * max(1.0, np.linalg.norm(vel)):
             raise ValueError("add_plane: surface_velocity must be tangential (normal . v = 0)")
-        self._planes.append((p, nrm, vel))
+        axis, extent = np.zeros(3), np.zeros(3)
+        if bounds is not None:
+            if not isinstance(bounds, PlaneBounds):
+                raise TypeError(f"add_plane: bounds must be a PlaneBounds, got {type(bounds)}")
+            axis = np.asarray(bounds.axis, dtype=float)
+            axis = axis / np.linalg.norm(axis)
+            if abs(axis @ nrm) > 1e-9:
+                raise ValueError("add_plane: bounds.axis must be tangential (normal . axis = 0)")
+            extent = np.array([bounds.length / 2, bounds.width / 2, bounds.edge_radius])
+        self._planes.append((p, nrm, vel, axis, extent))
         return len(self._planes) - 1
 
     def add_contact(
@@ -482,6 +496,11 @@ class ModelBuilder:
         if not (isinstance(plane, int | np.integer) and 0 <= plane < len(self._planes)):
             raise ValueError(
                 f"add_edge_contact: unknown plane {plane!r}; planes are 0..{len(self._planes) - 1}"
+            )
+        if self._planes[int(plane)][4][2] > 0.0:
+            raise ValueError(
+                f"add_edge_contact: plane {plane} is bounded (PlaneBounds); edge contact takes "
+                "half-space planes only"
             )
         self._contact_sets.append(EdgePlaneSet(*self._edge_set(
             "add_edge_contact", node_ids, int(plane), law, radius, samples, width, schedule
@@ -744,6 +763,8 @@ class ModelBuilder:
             plane_point=np.array([p[0] for p in self._planes]).reshape(-1, 3),
             plane_normal=np.array([p[1] for p in self._planes]).reshape(-1, 3),
             plane_velocity=np.array([p[2] for p in self._planes]).reshape(-1, 3),
+            plane_axis=np.array([p[3] for p in self._planes]).reshape(-1, 3),
+            plane_extent=np.array([p[4] for p in self._planes]).reshape(-1, 3),
             contact_laws=(
                 np.array([law.packed() for law in laws]) if laws else np.zeros((0, PACKED_SIZE))
             ),

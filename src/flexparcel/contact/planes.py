@@ -1,6 +1,17 @@
 """Contact of points (shell nodes, rigid-box corners) with rigid planes, e.g. the ground, a
 belt or a deflector.
 
+A plane is a half-space, or, with :class:`PlaneBounds`, a bounded slab: a rectangle (length
+along its axis, width across) whose surface is rounded by an edge radius ``r_b``, i.e. the set
+of points within ``r_b`` of the rectangle ``r_b`` below the surface (a Minkowski sum, like the
+rounded box). A belt of finite width and length is such a slab: packaging beyond its edges
+hangs over the rounded edge or falls past it. Its distance function is continuous everywhere
+(the closest point on a convex set moves continuously), so a node coming back from beside the
+belt meets the rounded edge, not the top surface from below at full penetration (which threw
+a sheet hanging over a belt cut off at its edge 1.7 m up). For a bounded plane the normal
+below is the unit vector from the closest rectangle point q to the contact point, ``n = (p -
+q) / |p - q|``, and ``s = r + r_b - |p - q|``; on the top face this is the plane's n and s.
+
 Each contact point belongs to one node and sits at a body-frame offset ``b`` from it (zero for a
 shell node; an inner-box corner for a rounded box) with a radius ``r`` (the box's edge radius:
 a rounded box is its inner box inflated by r, so contact with it is contact with spheres of
@@ -18,10 +29,17 @@ node's share of the surface around it, a box corner's stated area), and the poin
 ``f = A (F_N n + F_T)`` acts at the arm, i.e. ``[f, a x f]`` on the
 node. The kernel also returns the derivatives of that generalised force with respect to the
 node's position/spin and velocity/angular velocity, for the Newton tangent (terms of order
-w x (dtheta x rho) in the rate are left out).
+w x (dtheta x rho) in the rate are left out). On a bounded plane's rounded edge the normal
+turns with the point, ``dn/dp = (I - n n^T) P / |p - q|`` (P: the projection out of the
+directions along which q slides with p); the tangent carries that term for the normal force
+and its rate, and leaves out its effect on the friction direction and on the arm (of the
+order of the friction force over the distance |p - q|; tested against finite differences).
 """
 
 from __future__ import annotations
+
+import math
+from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
@@ -37,7 +55,66 @@ from flexparcel.contact.law import (
 from flexparcel.elements.rotations import skew
 from flexparcel.model.interfaces import ContactSet, row_keys
 
-__all__ = ["plane_contact_forces", "PlanePointSet"]
+__all__ = ["plane_contact_forces", "PlanePointSet", "PlaneBounds", "plane_gap"]
+
+
+@dataclass(frozen=True)
+class PlaneBounds:
+    """The extent of a bounded plane (a slab with rounded edges, see the module docstring):
+    ``axis`` the direction of its length (tangential to the plane; a belt's running
+    direction), ``length`` and ``width`` [m] of the top face around the plane's point, and
+    ``edge_radius`` [m] (> 0) of the rounded edges, half the slab's thickness."""
+
+    axis: tuple[float, float, float]
+    length: float
+    width: float
+    edge_radius: float
+
+    def __post_init__(self) -> None:
+        for name in ("length", "width", "edge_radius"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and 0.0 < v <= 1e3):
+                raise ValueError(f"PlaneBounds.{name} must be in (0, 1000] m, got {v!r}")
+        a = np.asarray(self.axis, dtype=float)
+        if a.shape != (3,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) == 0.0:
+            raise ValueError(
+                f"PlaneBounds.axis must be 3 finite numbers, not all 0, got {self.axis!r}"
+            )
+
+
+@nb.njit(cache=True)
+def plane_gap(p, radius, point, normal, axis, extent):
+    """Penetration ``s`` [m] (> 0 in contact) of a point ``p`` (3,) with contact ``radius``
+    [m] into a plane (``point``, unit ``normal``; ``axis`` and ``extent`` = [half length,
+    half width, edge radius] of a bounded one, edge radius 0: a half-space), the contact
+    normal ``n`` (3,) and its derivative ``dn/dp`` (3, 3) (zero on a flat face)."""
+    curv = np.zeros((3, 3))
+    rb = extent[2]
+    if rb == 0.0:
+        s = radius - (normal[0] * (p[0] - point[0]) + normal[1] * (p[1] - point[1])
+                      + normal[2] * (p[2] - point[2]))  # fmt: skip
+        return s, normal.copy(), curv
+    u = axis
+    w = np.cross(normal, u)
+    d = p - point + rb * normal  # from the rectangle's centre, r_b below the surface
+    a = u[0] * d[0] + u[1] * d[1] + u[2] * d[2]
+    b = w[0] * d[0] + w[1] * d[1] + w[2] * d[2]
+    free_u = abs(a) < extent[0]
+    free_w = abs(b) < extent[1]
+    d -= min(max(a, -extent[0]), extent[0]) * u + min(max(b, -extent[1]), extent[1]) * w
+    dist = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    s = radius + rb - dist
+    if dist <= 1e-12:  # on the rectangle itself, deep inside the slab: push out of the top
+        return s, normal.copy(), curv
+    nn = d / dist
+    if s > 0.0 and not (free_u and free_w):
+        proj = np.eye(3)
+        if free_u:
+            proj -= np.outer(u, u)
+        if free_w:
+            proj -= np.outer(w, w)
+        curv = (np.eye(3) - np.outer(nn, nn)) @ proj / dist
+    return s, nn, curv
 
 
 @nb.njit(cache=True)
@@ -52,6 +129,8 @@ def plane_contact_forces(
     plane_point,
     plane_normal,
     plane_velocity,
+    plane_axis,
+    plane_extent,
     laws,
     pos,
     rot,
@@ -72,7 +151,8 @@ def plane_contact_forces(
 
     Args: point arrays (P,) / (P, 3); ``cp_active`` (P,) schedule factors in [0, 1];
     ``cp_area`` (P,) tributary areas [m^2] (the law's per-area values times these);
-    planes (k, 3); ``laws`` (L, PACKED_SIZE); state ``pos`` (n, 3), ``rot`` (n, 3, 3),
+    planes (k, 3) (``plane_extent`` [half length, half width, edge radius], edge radius 0:
+    a half-space); ``laws`` (L, PACKED_SIZE); state ``pos`` (n, 3), ``rot`` (n, 3, 3),
     ``vel`` (n, 6).
     Outputs (accumulated): ``out_f`` (n, 6) forces [N, N m]; ``out_dq`` (P, 6, 6) and
     ``out_dv`` (P, 6, 6) derivatives per point (zero for points not in contact).
@@ -89,16 +169,12 @@ def plane_contact_forces(
             continue
         node = cp_node[q]
         pl = cp_plane[q]
-        n = plane_normal[pl]
         law = laws[cp_law[q]]
         r = rot[node]
         rho = r @ cp_offset[q]
         x = pos[node]
-        s = cp_radius[q] - (
-            n[0] * (x[0] + rho[0] - plane_point[pl, 0])
-            + n[1] * (x[1] + rho[1] - plane_point[pl, 1])
-            + n[2] * (x[2] + rho[2] - plane_point[pl, 2])
-        )
+        s, n, curv = plane_gap(x + rho, cp_radius[q], plane_point[pl], plane_normal[pl],
+                               plane_axis[pl], plane_extent[pl])  # fmt: skip
         if s <= 0.0:
             continue
         n_contact += 1
@@ -151,7 +227,17 @@ def plane_contact_forces(
         # force derivatives (3 x 6)
         dfn_q = dfn_ds * ds_dq
         dfn_v = dfn_dsd * dsd_dv
+        turning = curv[0, 0] + curv[1, 1] + curv[2, 2] > 0.0  # tr((I - nn^T) P) > 0 iff curv != 0
+        if turning:
+            # the normal turning on a rounded edge: dn/d[x, theta] = curv dp/d[x, theta]; the
+            # rate s' = -n . vc turns with it
+            dn_q = np.zeros((3, 6))
+            dn_q[:, :3] = curv
+            dn_q[:, 3:] = -(curv @ skew(rho))
+            dfn_q = dfn_q - dfn_dsd * (vc @ dn_q)
         df_q = np.outer(n + dft_dfn, dfn_q)
+        if turning:
+            df_q += fn * dn_q
         if stick:
             dp_dq = np.zeros((3, 6))
             dp_dq[:, :3] = np.eye(3)
@@ -215,8 +301,9 @@ class PlanePointSet(ContactSet):
         n_contact, depth, point, ratio = plane_contact_forces(
             self.node, self.offset, self.radius, self._plane_of, self._law_of,
             np.full(p, ctx.factors[self.schedule_index]), self.area, m.plane_point, m.plane_normal,
-            m.plane_velocity, ctx.laws[self.law_index : self.law_index + 1], state.positions,
-            state.rotations, state.velocities, out.forces, dq, dv, ctx.node_mass,
+            m.plane_velocity, m.plane_axis, m.plane_extent,
+            ctx.laws[self.law_index : self.law_index + 1], state.positions, state.rotations,
+            state.velocities, out.forces, dq, dv, ctx.node_mass,
             ctx.impact_speed, ctx.w2, self.u_el, self.u_el_trial, ctx.step,
             ctx.start.positions, ctx.start.rotations,
         )  # fmt: skip

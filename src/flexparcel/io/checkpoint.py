@@ -63,6 +63,8 @@ def _digest(arrays) -> str:
 def model_fingerprint(model: Model) -> str:
     """SHA-256 over the arrays that define the model's dynamics (hex)."""
     arrays = [getattr(model, k) for k in _MODEL_FIELDS]
+    if model.plane_extent.any():  # bounded planes only: half-spaces keep their digests
+        arrays += [model.plane_axis, model.plane_extent]
     for part in (*model.element_groups, *model.contact_sets):
         arrays.extend(part.fingerprint_arrays())
     return _digest(arrays)

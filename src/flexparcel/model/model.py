@@ -96,6 +96,11 @@ class Model:
     """Unit normal of each plane, out of its solid side, shape (k, 3)."""
     plane_velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     """Tangential surface velocity of each plane (a belt) [m/s], shape (k, 3)."""
+    plane_axis: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Unit length direction of each bounded plane (zeros for a half-space), shape (k, 3)."""
+    plane_extent: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    """Half length, half width and edge radius [m] of each bounded plane (all 0: a half-space;
+    :class:`~flexparcel.contact.planes.PlaneBounds`), shape (k, 3)."""
     contact_laws: np.ndarray = field(default_factory=lambda: np.zeros((0, PACKED_LAW_SIZE)))
     """Packed contact laws (see ContactLaw.packed), shape (L, PACKED_LAW_SIZE)."""
     contact_schedules: list = field(default_factory=list)
