@@ -11,7 +11,12 @@ from conftest import SHEET_T, soft_contact_law
 from flexparcel.contact.law import REFERENCE_AREA, REFERENCE_SPACING, ContactLaw
 from flexparcel.elements.rotations import rotation_exp
 from flexparcel.model.rigid import RoundedBox
-from flexparcel.scenarios.conveyor import ConveyorScene, DeflectorGeometry, add_conveyor
+from flexparcel.scenarios.conveyor import (
+    BeltTransfer,
+    ConveyorScene,
+    DeflectorGeometry,
+    add_conveyor,
+)
 from flexparcel.scenarios.conveyor_responses import conveyor_responses
 from flexparcel.scenarios.friction_pairs import (
     BELT,
@@ -271,13 +276,14 @@ def test_shell_sheet_is_stopped_by_the_deflector_face_mesh():
 
 @pytest.mark.parametrize("overhang", [0.1, 0.0])
 def test_packaging_beside_the_belt_meets_the_deflector_overhang(overhang):
-    # A 40 mm sheet of the KP/BW material lies beside the belt edge (y = 0.31-0.35 m, the
-    # belt plane is unbounded, as where packaging hangs over the edge), 21 mm upstream of
+    # A 40 mm sheet of the KP/BW material lies beside the belt edge (y = 0.31-0.35 m) and is
+    # carried there: the belt is an unbounded plane (belt_edge_radius = 0), standing in for
+    # packaging hanging over the edge while its part on the belt drags it, 21 mm upstream of
     # the first deflector's plane. With the sheet running on 0.1 m past the belt edge (the
     # default) the belt drags it into the overhang, which stops it and turns it towards
     # the centre line; with no overhang the deflector ends at the belt edge (y = 0.3 m) and
     # the sheet passes its free end (in the paper's scene KP's film went round it).
-    scene = ConveyorScene(deflector_overhang=overhang)
+    scene = ConveyorScene(deflector_overhang=overhang, belt_edge_radius=0.0)
     r, sheet, parts = _sheet_dragged_to_deflector(scene, (0.68, 0.31), 0.04, 0.3)
     g = parts.deflectors[0]
     p = r.positions[:, sheet]
@@ -485,6 +491,45 @@ def test_exit_time_and_position_are_interpolated_at_the_belt_end():
     assert r.exit_position == pytest.approx([3.0, 0.0, 0.01])
     assert r.jam_start is None
     assert _responses(1.0 + 1.6 * T).exit_time is None
+
+
+def test_exit_is_at_the_end_of_the_last_belt():
+    # with a transfer belt (0.02 m gap, 0.5 m) the consignment exits 0.52 m later
+    scene = ConveyorScene(transfer=BeltTransfer(gap=0.02, length=0.5, speed=1.6))
+    x = 3.0 + 1.6 * T
+    pos = _rectangle_nodes(np.column_stack([x, 0 * x]), 0 * x)
+    res = SimpleNamespace(time=T, positions=pos)
+    r = conveyor_responses(res, {"c": np.arange(4)}, scene)["c"]
+    assert r.exit_time == pytest.approx(0.52 / 1.6, abs=1e-12)
+
+
+def test_box_is_handed_over_to_a_slower_transfer_belt():
+    # a 100 g box riding the first belt at 1 m/s bridges a 5 mm gap onto a second belt at
+    # 0.5 m/s, slides there at mu_d and rides it: it loses 0.5 m/s in 0.5 / (mu_d g) =
+    # 0.127 s, then moves at the second belt's speed. A box touches the belts by its corners
+    # (as a plane): over the gap a corner sinks between the two rounded edges (radius 10 mm)
+    # to where it is 10 + 3 mm from both edge axes, sqrt(13^2 - 2.5^2) - 10 = 2.76 mm above
+    # the belt's surface instead of 3 mm: 0.24 mm (a 20 mm gap: 4.7 mm)
+    mu, v1, v2 = 0.5, 1.0, 0.5
+    scene = ConveyorScene(belt_length=0.4, belt_speed=v1, deflector_x=(),
+                          transfer=BeltTransfer(gap=0.005, length=0.6, speed=v2))  # fmt: skip
+    b = fp.ModelBuilder(gravity=(0.0, 0.0, -G))
+    parts = add_conveyor(b, scene)
+    box = RoundedBox(0.06, 0.04, 0.02, edge_radius=0.003, mass=0.1)
+    node = b.add_rigid_body(box, (0.3, 0.0, 0.0101))
+    for plane in parts.belt_planes:
+        b.add_contact(node, plane, _law(mu))
+    model = b.finalize()
+    s0 = model.initial_state()
+    s0.velocities[node, 0] = v1
+    r = fp.simulate(model, 0.45, dt_out=0.01, state=s0,
+                    options=fp.IntegratorOptions(tol_displacement=1e-5))  # fmt: skip
+    x, z, vx = r.positions[:, node, 0], r.positions[:, node, 2], r.velocities[:, node, 0]
+    assert np.abs(z - 0.0101).max() < 0.24e-3 + 0.2e-3  # bridged: the corner sink, bounce
+    assert x[-1] > 0.405 + 0.1 and abs(vx[-1] - v2) < 0.01  # on the second belt, at its speed
+    arrive = r.time[np.argmax(x > 0.405 + 0.03)]  # its rear corners leave the first belt
+    slowed = r.time[np.argmax(vx < v2 + 0.01)]
+    assert slowed - arrive == pytest.approx((v1 - v2 - 0.01) / (mu * G), abs=0.03)
 
 
 def test_jam_detection():

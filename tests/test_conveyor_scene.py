@@ -15,13 +15,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import flexparcel as fp
 from contact_views import plane_points
 from flexparcel.cli import main
 from flexparcel.consignments.build import ConsignmentBuild
 from flexparcel.consignments.snapshot import SnapshotError, load_snapshot, place_snapshot
 from flexparcel.consignments.userfile import load_consignment_file
 from flexparcel.io.checkpoint import load_checkpoint
-from flexparcel.scenarios.conveyor import ConveyorScene
+from flexparcel.model.rigid import RoundedBox
+from flexparcel.scenarios.conveyor import BeltTransfer, ConveyorScene, add_conveyor
 from flexparcel.scenarios.conveyor_scene import (
     Placement,
     SceneFileError,
@@ -150,6 +152,25 @@ def test_scene_file_default_queue_takes_the_paper_conveyor(tmp_path):
     assert s.conveyor == paper_conveyor(2.0, 45.0)
 
 
+def test_scene_file_transfer_adds_a_second_belt(tmp_path):
+    text = "[transfer]\ngap_m = 0.03\nlength_m = 1.5\nspeed_m_s = 1.2\n"
+    s = load_scene_file(_scene(tmp_path, HEAD + 'consignments = ["KPBW"]\n' + text))
+    c = s.conveyor
+    assert c.transfer == BeltTransfer(gap=0.03, length=1.5, speed=1.2)
+    assert c.belt_spans()[1] == pytest.approx((c.belt_length + 0.03, c.belt_length + 1.53, 1.2))
+    assert c.exit_x == pytest.approx(c.belt_length + 1.53)
+    b = fp.ModelBuilder()
+    parts = add_conveyor(b, c)
+    b.add_rigid_body(RoundedBox(0.1, 0.1, 0.1, mass=1.0), (0.3, 0.0, 0.5))
+    m = b.finalize()
+    (second,) = parts.transfer_planes
+    assert parts.belt_planes == (parts.belt_plane, second)
+    # both belts are slabs of their spans with the scene's edge radius
+    np.testing.assert_allclose(m.plane_extent[second], [0.75, c.belt_width / 2, 0.01])
+    np.testing.assert_allclose(m.plane_point[second], [c.belt_length + 0.03 + 0.75, 0.0, 0.0])
+    np.testing.assert_allclose(m.plane_velocity[second], [1.2, 0.0, 0.0])
+
+
 @pytest.mark.parametrize(
     ("text", "message"),
     [
@@ -186,6 +207,19 @@ def test_scene_file_default_queue_takes_the_paper_conveyor(tmp_path):
             r"consignment\[1\].name 'KP' is used by consignment\[0\]",
         ),  # fmt: skip
         (HEAD + 't_end_s = 0\nconsignments = ["KP"]\n', r"t_end_s must be in \[0.001, 10\] s"),
+        (
+            HEAD + 'consignments = ["KP"]\n[transfer]\ngap_m = 0.9\n',
+            r"\[transfer\]: gap_m must be in \[0, 0.5\] m, got 0.9",
+        ),  # fmt: skip
+        (HEAD + 'consignments = ["KP"]\n[transfer]\nwidth_m = 1\n', r"\[transfer\]: unknown key"),
+        (
+            HEAD + 'consignments = ["KP"]\n[belt]\nedge_radius_m = 0\n[transfer]\n',
+            r"edge_radius_m must be > 0 m with a transfer",
+        ),  # fmt: skip
+        (
+            HEAD + 'consignments = ["KP"]\n[belt]\nedge_radius_m = 0.2\n',
+            r"edge_radius_m must be in \[0, 0.05\] m, got 0.2",
+        ),  # fmt: skip
     ],
 )
 def test_bad_scene_files_name_the_file_and_key(tmp_path, text, message):

@@ -134,7 +134,8 @@ def scene_parts(
 ) -> dict:
     """The ``parts`` metadata of a results file (see the module docstring): ``consignments``
     (name -> consignment, in order), ``belt`` (``length_m``, ``width_m``, ``speed_m_s``; the
-    belt lies at z = 0 from x = 0 to its length, centred on y = 0), ``deflectors`` (node ids
+    belt lies at z = 0 from x = 0 to its length, centred on y = 0; with a transfer also
+    ``transfer_gap_m``, ``transfer_length_m``, ``transfer_speed_m_s``), ``deflectors`` (node ids
     of each deflector's mid-plane mesh), ``plate_z`` (a drop test's rigid plate)."""
     return {
         "version": PARTS_VERSION,
@@ -544,9 +545,15 @@ def _static_parts(parts: Mapping, model, result) -> dict[str, tuple]:
     belt = parts.get("belt")
     if belt:
         L, w = belt["length_m"], belt["width_m"]
-        pts = np.array([[0.0, -w / 2, 0.0], [L, -w / 2, 0.0], [L, w / 2, 0.0], [0.0, w / 2, 0.0]])
-        v = np.tile([belt.get("speed_m_s", 0.0), 0.0, 0.0], (4, 1))
-        out["belt"] = (pts, [("quad", np.array([[0, 1, 2, 3]]))], {"velocity_m_per_s": v})
+        spans = [(0.0, L, belt.get("speed_m_s", 0.0))]
+        if "transfer_length_m" in belt:  # a second belt after a gap
+            x0 = L + belt["transfer_gap_m"]
+            spans.append((x0, x0 + belt["transfer_length_m"], belt["transfer_speed_m_s"]))
+        corners = [((a, -w / 2), (b, -w / 2), (b, w / 2), (a, w / 2)) for a, b, _ in spans]
+        pts = np.array([[x, y, 0.0] for quad in corners for x, y in quad])
+        v = np.array([[speed, 0.0, 0.0] for _, _, speed in spans for _ in range(4)])
+        quads = np.arange(4 * len(spans)).reshape(-1, 4)
+        out["belt"] = (pts, [("quad", quads)], {"velocity_m_per_s": v})
     defl = [ranges_to_ids(d) for d in parts.get("deflectors", [])]
     if defl and any(d.size for d in defl):
         n = len(model.positions0)

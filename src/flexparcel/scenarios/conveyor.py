@@ -11,9 +11,17 @@ the next from y < 0, and so on.
 
 Modelling choices (they differ from the paper, which uses a shell belt on driven rollers):
 
-* the belt is a rigid plane with a prescribed surface velocity (``ModelBuilder.add_plane``).
-  The plane is unbounded: nothing falls off at x = ``belt_length``; the responses
-  (:mod:`flexparcel.scenarios.conveyor_responses`) report when a consignment passes it.
+* the belt is a rigid slab with a prescribed surface velocity (``ModelBuilder.add_plane`` with
+  :class:`~flexparcel.contact.planes.PlaneBounds`): its top face is the belt, ``belt_length``
+  by ``belt_width``, and its edges are rounded by ``belt_edge_radius`` (10 mm: the belt on
+  its slider bed as a 20 mm slab). Packaging beyond a side edge hangs over the rounded edge
+  or falls past it, and a consignment carried past x = ``belt_length`` tips over the end and
+  falls; the responses (:mod:`flexparcel.scenarios.conveyor_responses`) report when it
+  passes the end. The end is a rounded edge moving with the belt, where a real belt turns
+  down round its end drum (of a larger radius, its surface moving down): the drag while a
+  consignment tips over the end acts along the belt instead of along the drum.
+  ``belt_edge_radius = 0`` gives the earlier model, an unbounded plane (packaging beside
+  the belt is still carried; nothing falls off).
 * each deflector is a fixed rigid body carrying a triangle mesh of its mid-plane, half the
   sheet thickness behind its upstream face (a vertical rectangle); shell nodes touch it with
   a contact thickness of half their own thickness plus half the sheet's, so they meet the
@@ -41,10 +49,12 @@ import numpy as np
 
 from flexparcel.builder import ModelBuilder
 from flexparcel.contact.law import ContactLaw
+from flexparcel.contact.planes import PlaneBounds
 from flexparcel.model.checks import finite_number
 from flexparcel.model.rigid import RoundedBox
 
 __all__ = [
+    "BeltTransfer",
     "ConveyorScene",
     "DeflectorGeometry",
     "ConveyorParts",
@@ -157,6 +167,31 @@ class DeflectorGeometry:
 
 
 @dataclass(frozen=True)
+class BeltTransfer:
+    """A second belt after the first (a transfer between two conveyors): it starts ``gap``
+    [m] in [0, 0.5] after the first belt's end, runs ``length`` [m] in (0, 50] at ``speed``
+    [m/s] in [0, 10] along +x, with the first belt's width, surface height and edge radius.
+    A consignment bridges the gap or tips into it, and is dragged by both belts while it
+    lies on both."""
+
+    gap: float = 0.02
+    length: float = 1.0
+    speed: float = 1.6
+
+    def __post_init__(self) -> None:
+        ranges = {
+            "gap": ("in [0, 0.5] m", lambda v: 0.0 <= v <= 0.5),
+            "length": ("in (0, 50] m", lambda v: 0.0 < v <= 50.0),
+            "speed": ("in [0, 10] m/s", lambda v: 0.0 <= v <= 10.0),
+        }
+        for name, (allowed, ok) in ranges.items():
+            v = _number(f"transfer.{name}", getattr(self, name))
+            if not ok(v):
+                raise _bad(f"transfer.{name}", allowed, v)
+            object.__setattr__(self, name, v)
+
+
+@dataclass(frozen=True)
 class ConveyorScene:
     """Belt and deflectors (SI units; angles in degrees), validated on creation.
 
@@ -178,6 +213,13 @@ class ConveyorScene:
             over the edge goes round its free end (measured in the paper's scene, KP at the
             second deflector), which a real deflector fixed to the frame does not allow.
         side_guides: add unbounded guide planes along both belt edges.
+        belt_edge_radius: [m] in [0, 0.05]: the belt is a slab of the belt's length and
+            width with its edges rounded by this radius (half the slab's thickness; module
+            docstring); 0: an unbounded plane, which carries packaging beside the belt and
+            lets nothing fall off its end (for comparison with the earlier model).
+        transfer: a second belt after this one (:class:`BeltTransfer`), or None; needs a
+            bounded belt (``belt_edge_radius`` > 0). Consignments exit at the end of the
+            last belt (:attr:`exit_x`).
     """
 
     belt_length: float = 3.0
@@ -190,6 +232,8 @@ class ConveyorScene:
     deflector_thickness: float = 0.002
     deflector_overhang: float = 0.1
     side_guides: bool = False
+    belt_edge_radius: float = 0.01
+    transfer: BeltTransfer | None = None
 
     def __post_init__(self) -> None:
         ranges = {
@@ -200,6 +244,7 @@ class ConveyorScene:
             "deflector_height": ("in (0, 1] m", lambda v: 0.0 < v <= 1.0),
             "deflector_thickness": ("in (0, 0.05] m", lambda v: 0.0 < v <= 0.05),
             "deflector_overhang": ("in [0, 1] m", lambda v: 0.0 <= v <= 1.0),
+            "belt_edge_radius": ("in [0, 0.05] m", lambda v: 0.0 <= v <= 0.05),
         }
         for name, (allowed, ok) in ranges.items():
             v = _number(name, getattr(self, name))
@@ -213,6 +258,12 @@ class ConveyorScene:
         object.__setattr__(self, "centre_gap", gap)
         if not isinstance(self.side_guides, bool):
             raise _bad("side_guides", "True or False", self.side_guides)
+        if self.transfer is not None:
+            if not isinstance(self.transfer, BeltTransfer):
+                raise _bad("transfer", "a BeltTransfer or None", self.transfer)
+            if self.belt_edge_radius == 0.0:
+                raise _bad("belt_edge_radius", "> 0 m with a transfer (an unbounded belt "
+                           "has no end to hand over from)", 0.0)  # fmt: skip
         try:
             xs = tuple(_number("deflector_x", x) for x in self.deflector_x)
         except TypeError:
@@ -229,6 +280,20 @@ class ConveyorScene:
             if k and not x > xs[k - 1]:
                 raise _bad(f"deflector_x[{k}]", f"> deflector_x[{k - 1}] = {xs[k - 1]:g} m", x)
         object.__setattr__(self, "deflector_x", xs)
+
+    def belt_spans(self) -> tuple[tuple[float, float, float], ...]:
+        """``(x_start, x_end, speed)`` [m, m, m/s] of each belt, upstream first."""
+        spans = [(0.0, self.belt_length, self.belt_speed)]
+        t = self.transfer
+        if t is not None:
+            start = self.belt_length + t.gap
+            spans.append((start, start + t.length, t.speed))
+        return tuple(spans)
+
+    @property
+    def exit_x(self) -> float:
+        """Where consignments leave the conveyor [m]: the end of the last belt."""
+        return self.belt_spans()[-1][1]
 
     @property
     def deflector_reach_x(self) -> float:
@@ -283,6 +348,13 @@ class ConveyorParts:
     beyond the belt edge, bottom to top, shape (m + 1,) each."""
     side_guide_planes: tuple[int, ...] = field(default=())
     """Plane ids of the guides at y = +width/2 and y = -width/2, or () if none."""
+    transfer_planes: tuple[int, ...] = field(default=())
+    """Plane ids of the belts after the first (:class:`BeltTransfer`), or () if none."""
+
+    @property
+    def belt_planes(self) -> tuple[int, ...]:
+        """Plane ids of every belt, upstream first (give each its contact pairs)."""
+        return (self.belt_plane, *self.transfer_planes)
 
     def deflector_contact_thickness(self, shell_half_thickness: float) -> float:
         """Contact thickness [m] of shell nodes of half thickness ``shell_half_thickness``
@@ -334,14 +406,22 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
     :class:`ConveyorScene`) to ``builder``; returns their ids and geometry.
 
     Contact pairs are left to the caller, who knows the consignments and their laws:
-    ``builder.add_contact(nodes, parts.belt_plane, law, radius=t / 2)`` for the belt,
+    ``builder.add_contact(nodes, plane, law, radius=t / 2)`` for each of
+    ``parts.belt_planes``,
     ``add_deflector_contact(builder, parts, nodes, law, shell_half_thickness=t / 2)`` for a
     shell mesh (thickness t) against the deflectors (their faces and tip edges).
     """
     scene = scene if scene is not None else ConveyorScene()
     if not isinstance(scene, ConveyorScene):
         raise TypeError(f"add_conveyor: scene must be a ConveyorScene, got {type(scene)}")
-    belt = builder.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (scene.belt_speed, 0.0, 0.0))
+    belts = []
+    for x0, x1, speed in scene.belt_spans():
+        bounds = None
+        if scene.belt_edge_radius > 0.0:
+            bounds = PlaneBounds((1.0, 0.0, 0.0), x1 - x0, scene.belt_width,
+                                 scene.belt_edge_radius)  # fmt: skip
+        belts.append(builder.add_plane((0.5 * (x0 + x1), 0.0, 0.0), (0.0, 0.0, 1.0),
+                                       (speed, 0.0, 0.0), bounds=bounds))  # fmt: skip
     bodies, vertices, tips, ends = [], [], [], []
     geometry = scene.deflectors()
     for g in geometry:
@@ -367,7 +447,8 @@ def add_conveyor(builder: ModelBuilder, scene: ConveyorScene | None = None) -> C
         )
     return ConveyorParts(
         scene=scene,
-        belt_plane=belt,
+        belt_plane=belts[0],
+        transfer_planes=tuple(belts[1:]),
         deflector_bodies=tuple(bodies),
         deflector_vertices=tuple(vertices),
         deflectors=geometry,

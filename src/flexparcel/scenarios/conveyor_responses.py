@@ -8,8 +8,9 @@ output interval ``dt_out`` of the run.
 Definitions (SI units; angles in degrees):
 
 * trajectory: time and centroid x, y, z at every output frame.
-* exit: the first time the centroid reaches x = ``scene.belt_length``, linearly interpolated
-  between the two frames around it, and the centroid there; None if it never does.
+* exit: the first time the centroid reaches x = ``scene.exit_x`` (the last belt's end),
+  linearly interpolated between the two frames around it, and the centroid there; None if it
+  never does.
 * yaw: rotation about z since the first frame, from the principal axis of the nodes' x-y
   scatter (the long side of a flat consignment). The axis has no head or tail, so angles are
   unwrapped modulo 180 deg: the consignment must turn less than 90 deg between frames. None
@@ -300,7 +301,7 @@ def conveyor_responses(
         nodes = _node_set(name, ids, pos.shape[1])
         p = pos[:, nodes]  # (k, m, 3)
         c = p.mean(axis=1)
-        exit_time, exit_pos = _exit(t, c, scene.belt_length)
+        exit_time, exit_pos = _exit(t, c, scene.exit_x)
         contact, first = _deflector_contact(t, p, deflectors, contact_distance)
         mag = _force_magnitude(name, forces.get(name), len(t))
         peak = peak_t = None

@@ -241,7 +241,7 @@ class ConveyorScenario(ScenarioBase):
         parts = scene_parts(
             cm.model, cm.consignments, content_material=FLEXIBLE_CONTENT,
             belt={"length_m": scene.belt_length, "width_m": scene.belt_width,
-                  "speed_m_s": scene.belt_speed},
+                  "speed_m_s": scene.belt_speed, **_transfer_part(scene)},
             deflectors=cm.parts.deflector_vertices,
             deflector_thickness=scene.deflector_thickness,
         )  # fmt: skip
@@ -325,3 +325,11 @@ def _save_contact_forces(path: Path, time: Any, force: np.ndarray) -> Path:
     arrays = {"time": np.asarray(time, float), "frame": frame.astype(np.int64),
               "node": node.astype(np.int64), "force_N": force[frame, node]}  # fmt: skip
     return write_atomic(path, lambda f: np.savez_compressed(f, **arrays))
+
+
+def _transfer_part(scene) -> dict[str, float]:
+    """The transfer belt's keys of the results' ``belt`` part (none without one)."""
+    t = scene.transfer
+    if t is None:
+        return {}
+    return {"transfer_gap_m": t.gap, "transfer_length_m": t.length, "transfer_speed_m_s": t.speed}

@@ -71,6 +71,7 @@ from flexparcel.model.mesh import shell_edges
 from flexparcel.model.model import Model, State
 from flexparcel.scenarios.consignment_tests import consignment_options
 from flexparcel.scenarios.conveyor import (
+    BeltTransfer,
     ConveyorParts,
     ConveyorScene,
     add_conveyor,
@@ -222,6 +223,14 @@ class SceneLayout:
                 "centre_gap_m": c.centre_gap,
                 "deflector_height_m": c.deflector_height,
                 "side_guides": c.side_guides,
+                "belt_edge_radius_m": c.belt_edge_radius,
+                "transfer": None
+                if c.transfer is None
+                else {
+                    "gap_m": c.transfer.gap,
+                    "length_m": c.transfer.length,
+                    "speed_m_s": c.transfer.speed,
+                },
             },
             "placements": [
                 {
@@ -434,9 +443,11 @@ class SceneFile:
 
 
 _TOP_KEYS = {"format_version", "t_end_s", "element_size_mm", "gap_above_belt_m", "belt",
-             "deflectors", "consignments", "consignment", "start_speed_m_s"}  # fmt: skip
+             "deflectors", "consignments", "consignment", "start_speed_m_s",
+             "transfer"}  # fmt: skip
+_TRANSFER_KEYS = {"gap_m": "gap", "length_m": "length", "speed_m_s": "speed"}
 _BELT_KEYS = {"length_m": "belt_length", "width_m": "belt_width", "speed_m_s": "belt_speed",
-              "side_guides": "side_guides"}  # fmt: skip
+              "side_guides": "side_guides", "edge_radius_m": "belt_edge_radius"}  # fmt: skip
 _DEFLECTOR_KEYS = {"angle_deg": "deflector_angle_deg", "x_m": "deflector_x",
                    "centre_gap_m": "centre_gap", "height_m": "deflector_height",
                    "thickness_m": "deflector_thickness",
@@ -503,6 +514,15 @@ def load_scene_file(path: str | Path) -> SceneFile:
             kw[allowed[key]] = value
     speed = kw.pop("belt_speed", 1.6)
     angle = kw.pop("deflector_angle_deg", 45.0)
+    if "transfer" in doc:
+        transfer = table("transfer", _TRANSFER_KEYS)
+        try:
+            kw["transfer"] = BeltTransfer(**{_TRANSFER_KEYS[k]: v for k, v in transfer.items()})
+        except ValueError as exc:
+            msg = str(exc).replace("ConveyorScene.transfer.", "")
+            for key, field_name in _TRANSFER_KEYS.items():
+                msg = msg.replace(f"{field_name} must", f"{key} must", 1)
+            raise fail(f"[transfer]: {msg}") from None
     try:
         if "deflector_x" in kw or "belt_length" in kw:
             conveyor = ConveyorScene(belt_speed=speed, deflector_angle_deg=angle, **kw)
@@ -671,7 +691,8 @@ def build_conveyor_model(
         lb = with_friction(ground, surface, BELT, friction_table)
         ld = with_friction(ground, surface, DEFLECTOR, friction_table)
         laws[p.name] = {"belt": lb, "deflector": ld}
-        add_ground_contact(b, c, parts.belt_plane, lb)  # packaging, and content as a backstop
+        for belt in parts.belt_planes:  # packaging, and content as a backstop
+            add_ground_contact(b, c, belt, lb)
         add_deflector_contact(b, parts, c.packaging, ld, shell_half_thickness=c.contact_radius)
     pp_law = replace(default_packaging_content_law(), mu_static=mu, mu_dynamic=mu)
     names = [p.name for p in layout.placements]

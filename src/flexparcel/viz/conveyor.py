@@ -32,15 +32,16 @@ def _belt(ax, scene: ConveyorScene) -> None:
     from matplotlib.patches import Rectangle
 
     w = scene.belt_width * 1e3
-    ax.add_patch(Rectangle((0.0, -w / 2), scene.belt_length * 1e3, w, facecolor=BELT_COLOUR,
-                           edgecolor="k", linewidth=0.6, zorder=0))  # fmt: skip
+    for x0, x1, _ in scene.belt_spans():
+        ax.add_patch(Rectangle((x0 * 1e3, -w / 2), (x1 - x0) * 1e3, w, facecolor=BELT_COLOUR,
+                               edgecolor="k", linewidth=0.6, zorder=0))  # fmt: skip
     for g in scene.deflectors():
         p = 1e3 * np.array([g.outer_end, g.tip])
         ax.plot(p[:, 0], p[:, 1], color=DEFLECTOR_COLOUR, linewidth=2.5, zorder=3)
 
 
 def _top_limits(ax, scene: ConveyorScene, positions: np.ndarray | None = None) -> None:
-    hi = scene.belt_length
+    hi = scene.exit_x
     if positions is not None:
         hi = max(hi, float(positions[..., 0].max()) + 0.05)
     lo = 0.0 if positions is None else min(0.0, float(positions[..., 0].min()) - 0.05)
@@ -63,7 +64,7 @@ def plot_conveyor_snapshots(
     consignments (leave out the deflector meshes)."""
     plt = _pyplot()
     k = len(frames)
-    aspect = scene.belt_width / scene.belt_length
+    aspect = scene.belt_width / scene.exit_x
     fig, axes = plt.subplots(k, 1, figsize=(11, max(2.2, 11 * aspect + 0.6) * k), squeeze=False)
     everything = np.stack([f[1] for f in frames])
     for ax, (t, pos, boxes) in zip(axes[:, 0], frames, strict=True):
@@ -103,7 +104,7 @@ def plot_trajectories(
     top.set_ylabel("y [mm]")
     top.set_title("centroid paths (o: start)", fontsize=9)
     top.legend(fontsize=8, loc="upper right")
-    xt.axhline(scene.belt_length * 1e3, color="k", linestyle=":", linewidth=0.8)
+    xt.axhline(scene.exit_x * 1e3, color="k", linestyle=":", linewidth=0.8)
     for x in scene.deflector_x:
         xt.axhline(x * 1e3, color=DEFLECTOR_COLOUR, linestyle="--", linewidth=0.6)
     xt.set_xlabel("t [s]")
@@ -205,11 +206,14 @@ def animate_conveyor(
     ax3 = fig.add_subplot(1, 2, 2, projection="3d")
     everything = positions[idx]
     w = scene.belt_width * 1e3
-    lx = scene.belt_length * 1e3
+    lx = scene.exit_x * 1e3
     hmax = max(scene.deflector_height * 1e3, 50.0)
 
     def static3d() -> None:
-        belt = [[(0, -w / 2, 0), (lx, -w / 2, 0), (lx, w / 2, 0), (0, w / 2, 0)]]
+        belt = [
+            [(x0, -w / 2, 0), (x1, -w / 2, 0), (x1, w / 2, 0), (x0, w / 2, 0)]
+            for x0, x1 in (1e3 * np.array(span[:2]) for span in scene.belt_spans())
+        ]
         ax3.add_collection3d(Poly3DCollection(belt, facecolor=BELT_COLOUR, alpha=0.5))
         faces = []
         deflectors = scene.deflectors()
