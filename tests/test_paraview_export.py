@@ -296,3 +296,13 @@ def test_viewer_opens_conveyor_results_written_without_parts(conveyor_dir, tmp_p
     assert [t["name"] for t in scene.static] == ["belt (1.6 m/s)", "deflectors"]
     assert [m.name for m in scene.dynamic] == ["packaging"]  # rigid contents unknown
     assert scene.unavailable["contact_force"].startswith("not in these results")
+
+
+def test_belt_spans_of_a_transfer():
+    from flexparcel.io.paraview import belt_spans
+
+    belt = {"length_m": 3.0, "width_m": 0.6, "speed_m_s": 1.6}
+    assert belt_spans(belt) == [(0.0, 3.0, 1.6)]
+    belt.update(transfer_gap_m=0.02, transfer_length_m=1.0, transfer_speed_m_s=1.2)
+    (a, b) = belt_spans(belt)
+    assert a == (0.0, 3.0, 1.6) and b == pytest.approx((3.02, 4.02, 1.2))

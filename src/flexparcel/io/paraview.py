@@ -51,6 +51,7 @@ __all__ = [
     "consignment_part",
     "parts_from_meta",
     "node_ranges",
+    "belt_spans",
     "ranges_to_ids",
     "rounded_box_mesh",
     "cell_strain_stress",
@@ -539,16 +540,24 @@ def write_paraview_static(
     return _write_pvd(directory / f"{name}.pvd", [(float(time), fname)])
 
 
+def belt_spans(belt: Mapping[str, float]) -> list[tuple[float, float, float]]:
+    """``(x_start, x_end, speed)`` [m, m, m/s] of each belt of a results file's ``belt``
+    part: the belt from x = 0, and a transfer belt after its gap where there is one."""
+    length = belt["length_m"]
+    spans = [(0.0, length, belt.get("speed_m_s", 0.0))]
+    if "transfer_length_m" in belt:
+        x0 = length + belt["transfer_gap_m"]
+        spans.append((x0, x0 + belt["transfer_length_m"], belt["transfer_speed_m_s"]))
+    return spans
+
+
 def _static_parts(parts: Mapping, model, result) -> dict[str, tuple]:
     """name -> (points, cells, point_data) of the belt, deflectors and plate of ``parts``."""
     out: dict[str, tuple] = {}
     belt = parts.get("belt")
     if belt:
-        L, w = belt["length_m"], belt["width_m"]
-        spans = [(0.0, L, belt.get("speed_m_s", 0.0))]
-        if "transfer_length_m" in belt:  # a second belt after a gap
-            x0 = L + belt["transfer_gap_m"]
-            spans.append((x0, x0 + belt["transfer_length_m"], belt["transfer_speed_m_s"]))
+        w = belt["width_m"]
+        spans = belt_spans(belt)
         corners = [((a, -w / 2), (b, -w / 2), (b, w / 2), (a, w / 2)) for a, b, _ in spans]
         pts = np.array([[x, y, 0.0] for quad in corners for x, y in quad])
         v = np.array([[speed, 0.0, 0.0] for _, _, speed in spans for _ in range(4)])

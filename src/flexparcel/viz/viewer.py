@@ -315,19 +315,21 @@ def load_scene(results_dir: str | Path) -> ViewScene:
 
 def _static_traces(parts: dict | None, cells, pos: np.ndarray) -> list[dict]:
     """Mesh3d traces of the belt, the deflectors and a drop test's plate."""
-    from flexparcel.io.paraview import ranges_to_ids
+    from flexparcel.io.paraview import belt_spans, ranges_to_ids
 
     out: list[dict] = []
     if not parts:
         return out
     belt = parts.get("belt")
     if belt:
-        L, w = belt["length_m"], belt["width_m"]
-        out.append({"type": "mesh3d", "name": f"belt ({belt.get('speed_m_s', 0):g} m/s)",
-                    "x": [0, L, L, 0], "y": [-w / 2, -w / 2, w / 2, w / 2], "z": [0, 0, 0, 0],
-                    "i": [0, 0], "j": [1, 2], "k": [2, 3], "color": "#6b6b6b",
-                    "opacity": 1.0, "flatshading": True, "hoverinfo": "name",
-                    "showlegend": True, "showscale": False})  # fmt: skip
+        w = belt["width_m"]
+        for a, b, speed in belt_spans(belt):
+            out.append({"type": "mesh3d", "name": f"belt ({speed:g} m/s)",
+                        "x": [a, b, b, a], "y": [-w / 2, -w / 2, w / 2, w / 2],
+                        "z": [0, 0, 0, 0], "i": [0, 0], "j": [1, 2], "k": [2, 3],
+                        "color": "#6b6b6b", "opacity": 1.0, "flatshading": True,
+                        "hoverinfo": "name", "showlegend": True,
+                        "showscale": False})  # fmt: skip
     n = pos.shape[1]
     defl = np.zeros(n, bool)
     for d in parts.get("deflectors", []):
