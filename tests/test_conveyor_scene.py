@@ -392,6 +392,40 @@ def test_deflector_edge_depths_measure_packaging_edges_at_the_tips_and_ends(snap
     assert (d["time_s"], d["edge"]) == (0.01, "tip 1")
 
 
+def test_content_below_belt_counts_only_over_the_belt(snapshot_dir):
+    from types import SimpleNamespace
+
+    from flexparcel.scenarios.conveyor_scene import content_below_belt
+
+    snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
+    cm = build_conveyor_model({"c": snap}, throughput_layout(snap.build, 1))
+    m, c = cm.model, cm.consignments["c0"]
+    body = c.content_body
+    i = int(np.flatnonzero(m.rigid_nodes == body)[0])
+    half, radius = m.rigid_half_inner[i], m.rigid_radius[i]
+    frames = np.repeat(cm.state0.positions[None], 4, axis=0)
+    rv = np.zeros(frames.shape)
+    # frame 1: the box's lowest corner sphere 0.3 mm under the belt surface, over the belt
+    frames[1, body] = (0.5, 0.0, half[2] + radius - 3e-4)
+    # frame 2: 2 mm under it, but past the belt's end (fallen off): not counted
+    frames[2, body] = (cm.parts.scene.belt_length + 0.05, 0.0, half[2] + radius - 2e-3)
+    # frame 3: turned 90 deg about x (its y half-size now points down), 0.5 mm under
+    rv[3, body] = (np.pi / 2, 0.0, 0.0)
+    frames[3, body] = (0.6, 0.0, half[1] + radius - 5e-4)
+    res = SimpleNamespace(time=np.array([0.0, 0.01, 0.02, 0.03]), positions=frames,
+                          rotation_vectors=rv)  # fmt: skip
+    d = content_below_belt(cm, res)["c0"]
+    assert d["depth_m"] == pytest.approx(5e-4, abs=1e-12) and d["time_s"] == 0.03
+    assert d["limit_m"] == cm.laws["c0"]["belt"].max_penetration
+    res = SimpleNamespace(time=res.time[:3], positions=frames[:3], rotation_vectors=rv[:3])
+    assert content_below_belt(cm, res)["c0"]["depth_m"] == pytest.approx(3e-4, abs=1e-12)
+    res = SimpleNamespace(
+        time=res.time[[0, 2]], positions=frames[[0, 2]], rotation_vectors=rv[[0, 2]]
+    )
+    assert content_below_belt(cm, res)["c0"] == {"depth_m": None, "limit_m": d["limit_m"],
+                                                 "time_s": None}  # fmt: skip
+
+
 @pytest.fixture(scope="module")
 def conveyor_run(snapshot_dir, tmp_path_factory):
     out = tmp_path_factory.mktemp("conveyor") / "run"

@@ -108,6 +108,7 @@ __all__ = [
     "deflector_normal_forces",
     "deflector_crossings",
     "deflector_edge_depths",
+    "content_below_belt",
     "run_conveyor",
     "conveyor_options",
     "SUMMARY_NOTES",
@@ -850,11 +851,60 @@ def deflector_edge_depths(cm: ConveyorModel, result: SimulationResult) -> dict[s
     return out
 
 
+def content_below_belt(cm: ConveyorModel, result: SimulationResult) -> dict[str, dict]:
+    """How far each consignment's content came below the belt surface while over a belt: the
+    largest depth [m] of its lowest surface point under z = 0 over the recorded frames (a
+    rigid box's lowest rounded corner, a flexible content's lowest node less its contact
+    radius), counted only where that point lies over a belt's top face (a consignment that
+    fell off the end or an edge is not below the belt). The content rests on its packaging
+    on the belt, so it should stay above the surface; the contact's own allowance is the
+    belt law's ``max_penetration`` (Table 6's s_max, 0.1 mm), reported as ``limit_m``.
+    Between frames deeper moments are missed. Placement name -> {"depth_m", "limit_m",
+    "time_s"}; ``depth_m`` and ``time_s`` are None if the content never went below z = 0."""
+    from flexparcel.elements.rotations import rotation_exp
+
+    t = np.asarray(result.time)
+    pos = np.asarray(result.positions)
+    scene = cm.parts.scene
+    m = cm.model
+    out: dict[str, dict] = {}
+    for name, c in cm.consignments.items():
+        if c.content_body is not None:
+            i = int(np.flatnonzero(m.rigid_nodes == c.content_body)[0])
+            half, radius = m.rigid_half_inner[i], float(m.rigid_radius[i])
+            corners = []  # the lowest inner corner in each frame: its sphere is lowest
+            for v, x in zip(np.asarray(result.rotation_vectors)[:, c.content_body],
+                            pos[:, c.content_body], strict=True):  # fmt: skip
+                r = rotation_exp(v)
+                corners.append(x + r @ (np.where(r[2] > 0.0, -1.0, 1.0) * half))
+            corners = np.array(corners)
+            lowest = corners[:, None, 2] - radius
+            xy = corners[:, None, :2]
+        else:
+            lowest = pos[:, c.content_nodes, 2] - c.contact_radius  # (k, m)
+            xy = pos[:, c.content_nodes, :2]
+        over = np.zeros(lowest.shape, dtype=bool)
+        for x0, x1, _ in scene.belt_spans():
+            over |= (xy[..., 0] >= x0) & (xy[..., 0] <= x1)
+        over &= np.abs(xy[..., 1]) <= 0.5 * scene.belt_width
+        depth = np.where(over, -lowest, -np.inf).max(axis=1)  # (k,)
+        law = cm.laws[name]["belt"]
+        row = {"depth_m": None, "limit_m": law.max_penetration, "time_s": None}
+        if depth.max() > 0.0:
+            k = int(np.argmax(depth))
+            row.update(depth_m=float(depth[k]), time_s=float(t[k]))
+        out[name] = row
+    return out
+
+
 SUMMARY_NOTES = {
     "deflector_crossings": "per consignment, the first time [s] a packaging node lies behind "
     "a deflector (contact failed); null: never, the wanted outcome",
     "deflector_edge_depths": "per consignment, how far [m] packaging element edges came "
     "inside the contact thickness of a deflector's tip or end edge; null: never within it",
+    "content_below_belt": "per consignment, how far [m] the content's lowest surface went "
+    "below the belt surface while over a belt (limit_m: the belt law's max_penetration); "
+    "null: never below it",
     "friction": "[mu_static, mu_dynamic] of each contact pair [-]",
     "consignments": "per consignment: keys carry their unit (_s, _m, _deg, _N); its notes "
     "say why a value is null",
@@ -897,6 +947,7 @@ class ConveyorRun:
             # name kept for the benchmark's JSON; the unit and the meaning of null in notes
             "deflector_crossings": deflector_crossings(cm, res),
             "deflector_edge_depths": deflector_edge_depths(cm, res),
+            "content_below_belt": content_below_belt(cm, res),
             "layout": cm.layout.to_dict(),
             "friction": {
                 k: {part: [law.mu_static, law.mu_dynamic] for part, law in v.items()}
