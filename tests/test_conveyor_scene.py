@@ -426,6 +426,27 @@ def test_content_below_belt_counts_only_over_the_belt(snapshot_dir):
                                                  "time_s": None}  # fmt: skip
 
 
+def test_deflector_friction_parameter_sets_every_deflector_law(snapshot_dir):
+    import pickle
+
+    from flexparcel.scenarios.conveyor_scenario import deflector_friction_table
+    from flexparcel.scenarios.friction_pairs import DEFAULT_FRICTION_TABLE, DEFLECTOR
+    from flexparcel.scenarios.registry import get_scenario
+
+    snap = load_snapshot(snapshot_dir / "consignment_small" / "snapshot.npz")
+    scenario = get_scenario("conveyor", scene=load_scene_file(SCENE))
+    cm = scenario.build({"consignment_small": snap}, {"deflector_friction": 0.7})
+    for laws in cm.laws.values():
+        assert laws["deflector"].mu_static == laws["deflector"].mu_dynamic == 0.7
+        assert laws["belt"].mu_static != 0.7  # the belt's friction is the table's
+    table = deflector_friction_table(0.7)
+    assert {k for k, v in table.items() if v.mu_static == 0.7} == {
+        k for k in DEFAULT_FRICTION_TABLE if k[1] == DEFLECTOR
+    }
+    pickle.dumps(table)  # it travels to the group workers, which are spawned
+    assert deflector_friction_table(None) is None
+
+
 @pytest.fixture(scope="module")
 def conveyor_run(snapshot_dir, tmp_path_factory):
     out = tmp_path_factory.mktemp("conveyor") / "run"

@@ -157,6 +157,7 @@ def test_builtins_are_registered_and_declare_parameters_with_units(name):
         ("conveyor", "belt_speed", 12, "belt_speed must be in [0, 10] m/s, got 12"),
         ("conveyor", "content_stiffness", 0.5,
          "content_stiffness must be in [1, 10000] N/mm, got 0.5"),
+        ("conveyor", "deflector_friction", 3, "deflector_friction must be in [0, 2] -, got 3"),
     ],
 )  # fmt: skip
 def test_builtins_reject_out_of_range_naming_field_and_range(name, field, value, message):

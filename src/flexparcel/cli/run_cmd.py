@@ -18,11 +18,12 @@ TESTS = ("swing", "drop-vertical", "drop-horizontal")
 SCENARIOS = (*TESTS, "conveyor")
 _CONVEYOR_FLAGS = {"belt_speed": "--belt-speed", "deflector_angle": "--deflector-angle",
                    "start_speed": "--start-speed", "pair_reach": "--pair-reach",
-                   "content_stiffness": "--content-stiffness"}  # fmt: skip
+                   "content_stiffness": "--content-stiffness",
+                   "deflector_friction": "--deflector-friction"}  # fmt: skip
 """Conveyor scenario parameter -> the option that sets it."""
 _CONVEYOR_ONLY = ("consignments", "belt_speed", "deflector_angle", "scene", "snapshot_dir",
                   "pair_reach", "start_speed", "preview", "content_stiffness",
-                  "workers")  # fmt: skip
+                  "deflector_friction", "workers")  # fmt: skip
 _TEST_ONLY = ("consignment", "snapshot", "assignments")
 
 
@@ -144,6 +145,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="conveyor: packaging-content contact stiffness c [N/mm] (and stick stiffness "
         "k_t = c) of every consignment (default: Table 6's 649, as assembled); softer is "
         "faster and lets the film settle deeper on its content",
+    )
+    g.add_argument(
+        "--deflector-friction",
+        type=float,
+        default=None,
+        metavar="MU",
+        help="conveyor: friction coefficient (static = dynamic) of every consignment on the "
+        "deflectors, in [0, 2] (default: the friction table's, by packaging surface)",
     )
     g.add_argument(
         "--workers",

@@ -51,7 +51,7 @@ if TYPE_CHECKING:
     from flexparcel.scenarios.conveyor_scene import ConveyorModel, SceneFile, SceneLayout
 
 __all__ = ["ConveyorScenario", "CONVEYOR_PARAMETERS", "WORKERS", "CHECKPOINT_FILE",
-           "content_law_for", "group_settings"]  # fmt: skip
+           "content_law_for", "group_settings", "deflector_friction_table"]  # fmt: skip
 
 CHECKPOINT_FILE = "checkpoint.npz"
 """Name of the checkpoint a run in a directory saves itself to."""
@@ -69,6 +69,9 @@ CONVEYOR_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("pair_reach", "m", None, 0.0, 1e3,
               "consignment-consignment contact only for pairs that start closer than this "
               "(default: every pair)"),
+    Parameter("deflector_friction", "-", None, 0.0, 2.0,
+              "friction coefficient (static = dynamic) of every consignment's packaging on "
+              "the deflectors (default: the friction table's, by packaging surface)"),
 )  # fmt: skip
 WORKERS = Parameter("workers", "", 2, 0, 64, "worker processes (0: the scene as one model)",
                     integer=True)  # fmt: skip
@@ -88,6 +91,24 @@ def content_law_for(stiffness_n_per_mm: float | None, label: str = "content_stif
 
     c = CONVEYOR_PARAMETERS[3].check(stiffness_n_per_mm, label) * 1e3 / REFERENCE_AREA
     return replace(default_packaging_content_law(), stiffness=c, stick_stiffness=c)
+
+
+def deflector_friction_table(mu: float | None):
+    """The friction table with every packaging surface's friction on the deflectors set to
+    ``mu`` [-] in [0, 2] (static = dynamic), or None (the default table) when not given."""
+    if mu is None:
+        return None
+    from flexparcel.scenarios.friction_pairs import (
+        DEFAULT_FRICTION_TABLE,
+        DEFLECTOR,
+        FrictionPair,
+    )
+
+    mu = CONVEYOR_PARAMETERS[5].check(mu, "deflector_friction")
+    row = FrictionPair(mu, mu, "study parameter deflector_friction")
+    table = dict(DEFAULT_FRICTION_TABLE)
+    table.update({key: row for key in table if key[1] == DEFLECTOR})
+    return table
 
 
 def group_settings(workers: int, label: str = "workers") -> GroupSettings | None:
@@ -169,7 +190,9 @@ class ConveyorScenario(ScenarioBase):
         p = self.resolve(parameters)
         layout = self.layout({k: s.build for k, s in consignment.items()}, p)
         return build_conveyor_model(consignment, layout, pair_reach=p["pair_reach"],
-                                    content_law=self._content_law(p))  # fmt: skip
+                                    content_law=self._content_law(p),
+                                    friction_table=deflector_friction_table(
+                                        p.get("deflector_friction")))  # fmt: skip
 
     def run(
         self,
@@ -191,7 +214,9 @@ class ConveyorScenario(ScenarioBase):
                            progress=progress, checkpoint=self.checkpoint,
                            checkpoint_only=self.preview, content_law=self._content_law(p),
                            groups=group_settings(self.workers),
-                           jam_time=self.jam_time)  # fmt: skip
+                           jam_time=self.jam_time,
+                           friction_table=deflector_friction_table(
+                               p.get("deflector_friction")))  # fmt: skip
         settings = {
             "belt_speed_m_s": layout.conveyor.belt_speed,
             "deflector_angle_deg": layout.conveyor.deflector_angle_deg,
@@ -201,6 +226,7 @@ class ConveyorScenario(ScenarioBase):
             "jam_time_s": self.jam_time,
             "workers": self.workers,
             "content_stiffness_N_per_mm": p["content_stiffness"],
+            "deflector_friction": p.get("deflector_friction"),
             "element_size_mm": {k: s.build.element_size * 1e3 for k, s in consignment.items()},
         }
         return ScenarioResult(self.name, dict(p), run.result, run.wall_s, run, settings)

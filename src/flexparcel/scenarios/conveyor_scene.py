@@ -1045,7 +1045,9 @@ def run_conveyor(
                        progress=progress, checkpoint=checkpoint,
                        checkpoint_only=checkpoint_only)  # fmt: skip
     else:
-        build = {"friction_table": friction_table, "pair_reach": pair_reach,
+        # a plain dict: the workers are spawned, and a read-only mapping does not pickle
+        table = None if friction_table is None else dict(friction_table)
+        build = {"friction_table": table, "pair_reach": pair_reach,
                  "content_law": content_law}  # fmt: skip
         res = integrate_by_groups(cm, snapshots, t_end, dt_out=dt_out, options=opts,
                                   build_kwargs=build, settings=groups, progress=progress,

@@ -190,6 +190,7 @@ CONVEYOR_UNITS = {
     "start_speed": "m/s",
     "content_stiffness": "N/mm",
     "pair_reach": "m",
+    "deflector_friction": "-",
 }
 
 # the study store hashes runs with the simulator's version: bump it when results change
