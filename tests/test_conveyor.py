@@ -532,6 +532,39 @@ def test_box_is_handed_over_to_a_slower_transfer_belt():
     assert slowed - arrive == pytest.approx((v1 - v2 - 0.01) / (mu * G), abs=0.03)
 
 
+def test_jam_exit_and_group_responses_for_design_studies():
+    from flexparcel.scenarios.conveyor_scenario import (
+        _consignment_responses,
+        _group_responses,
+    )
+
+    stuck = _responses(np.minimum(1.6 * T, 1.6 * 0.2))  # jams at 0.2 s, run ends at 0.6 s
+    out = _responses(2.5 + 1.6 * T, y=np.full_like(T, 0.1))  # exits at 0.3125 s, y = 0.1
+    other = _responses(2.6 + 1.6 * T, y=np.full_like(T, -0.1))  # exits at 0.25 s, y = -0.1
+    r = _consignment_responses("a", stuck, None)
+    assert r["a.jammed"].value == 1.0 and r["a.time_stuck"].value == pytest.approx(0.4)
+    assert not r["a.exit_y"].reached and "did not reach" in r["a.exit_y"].note
+    r = _consignment_responses("b", out, None)
+    assert r["b.jammed"].value == 0.0 and r["b.time_stuck"].value == 0.0
+    assert r["b.exit_y"].value == pytest.approx(0.1)
+    g = _group_responses({"b": out, "c": other})
+    assert g["group.jammed"].value == 0.0
+    assert g["group.exit_time_last"].value == pytest.approx(0.3125)
+    assert g["group.exit_spread"].value == pytest.approx(0.1)  # std of +-0.1 m
+    g = _group_responses({"a": stuck, "b": out})
+    assert g["group.jammed"].value == 1.0
+    assert not g["group.exit_time_last"].reached and "a did not reach" in g[
+        "group.exit_time_last"].note  # fmt: skip
+    assert not g["group.exit_spread"].reached  # one exit: no spread
+    x = 1.6 * T[:5]  # 0.04 s: shorter than the 0.3 s jam window
+    res = SimpleNamespace(
+        time=T[:5], positions=_rectangle_nodes(np.column_stack([x, 0 * x]), 0 * x)
+    )
+    short = conveyor_responses(res, {"c": np.arange(4)}, ConveyorScene())["c"]
+    assert not _consignment_responses("s", short, None)["s.jammed"].reached
+    assert not _group_responses({"s": short})["group.jammed"].reached
+
+
 def test_jam_detection():
     moving = np.minimum(1.6 * T, 1.6 * 0.2)  # stops dead at t = 0.2 s
     assert _responses(moving).jam_start == pytest.approx(0.2)

@@ -239,6 +239,7 @@ class ConveyorScenario(ScenarioBase):
         out: dict[str, Response] = {}
         for name, r in run.responses.items():
             out.update(_consignment_responses(name, r, crossings.get(name)))
+        out.update(_group_responses(run.responses))
         return out
 
     def summary(self, result: ScenarioResult) -> dict:
@@ -308,6 +309,21 @@ def _consignment_responses(name: str, r: Any, crossing: float | None) -> dict[st
             crossing, "s", "first time a packaging node lies behind a deflector",
             "" if crossing is not None else "no packaging node behind a deflector"),
     }  # fmt: skip
+    state, why = r.jam_verdict()
+    judged = state != "not judged"
+    stuck = float(r.time[-1]) - r.jam_start if r.jam_start is not None else 0.0
+    exit_y = None if r.exit_position is None else float(r.exit_position[1])
+    out.update({
+        f"{name}.jammed": Response(
+            float(state == "jam") if judged else None, "-",
+            "1 if it jammed within the run, 0 if not", "" if judged else why),
+        f"{name}.time_stuck": Response(
+            stuck if judged else None, "s", "time from the jam's start to the end of the run "
+            "(0 without a jam)", "" if judged else why),
+        f"{name}.exit_y": Response(
+            exit_y, "m", "centroid y where it reaches the belt end (lateral exit position)",
+            "" if exit_y is not None else "did not reach the belt end within the run"),
+    })  # fmt: skip
     for i, t in enumerate(r.deflector_contact_time, start=1):
         # never touched is not a contact of 0 s at some time: not reached, with the reason
         out[f"{name}.deflector_contact_duration_{i}"] = Response(
@@ -315,6 +331,36 @@ def _consignment_responses(name: str, r: Any, crossing: float | None) -> dict[st
             "" if t > 0.0 else f"no node came within {1e3 * r.contact_distance:g} mm of "
             f"deflector {i}'s face within the run")  # fmt: skip
     return out
+
+
+def _group_responses(responses: Mapping[str, Any]) -> dict[str, Response]:
+    """The scalar responses of the whole group of consignments (``group.*``): whether any
+    jammed, the last exit time, the spread (population standard deviation) of the exit y
+    positions, and the largest deflector force of any consignment."""
+    rs = list(responses.values())
+    states = [r.jam_verdict()[0] for r in rs]
+    judged = "not judged" not in states
+    exits = [r.exit_time for r in rs]
+    ys = [float(r.exit_position[1]) for r in rs if r.exit_position is not None]
+    forces = [r.peak_contact_force for r in rs if r.peak_contact_force is not None]
+    waiting = [n for n, t in zip(responses, exits, strict=True) if t is None]
+    return {
+        "group.jammed": Response(
+            float("jam" in states) if judged else None, "-",
+            "1 if any consignment jammed within the run, 0 if none did",
+            "" if judged else "the run is shorter than the jam window"),
+        "group.exit_time_last": Response(
+            max(exits) if not waiting else None, "s", "time the last consignment reaches the "
+            "belt end", "" if not waiting else f"{', '.join(waiting)} did not reach the belt "
+            "end within the run"),
+        "group.exit_spread": Response(
+            float(np.std(ys)) if len(ys) >= 2 else None, "m", "spread (standard deviation) "
+            "of the consignments' exit y positions", "" if len(ys) >= 2 else "fewer than two "
+            "consignments reached the belt end within the run"),
+        "group.peak_contact_force": Response(
+            max(forces) if forces else None, "N", "largest deflector normal force on any "
+            "consignment", "" if forces else "no contact force recorded"),
+    }  # fmt: skip
 
 
 def _deflector_node_forces(cm: Any, res: Any) -> np.ndarray:
