@@ -98,15 +98,20 @@ def test_block_backend_gives_the_same_motion(backend):
                                                   newton_residual_tol=1e9))  # fmt: skip
     opt = fp.IntegratorOptions(linear_solver=backend, newton_residual_tol=1e9)
     r1 = fp.simulate(model, 0.03, dt_out=0.01, state=s0, options=opt)
-    assert r1.stats["steps"] == r0.stats["steps"]
+    if backend != "cholmod":
+        assert r1.stats["steps"] == r0.stats["steps"]
+        assert np.abs(r1.positions - r0.positions).max() < 1e-9
+        return
     # cholmod solves the friction-coupled (nonsymmetric) matrices by GMRES to a relative
     # residual of KRYLOV_RTOL (1e-3, an inexact Newton correction) instead of to round-off.
     # Since their pattern is held structurally symmetric, all of them go through GMRES:
-    # each step's Newton iterate then ends elsewhere within Newton's tolerance (1e-6 m), and
-    # that carries over the 65 steps (measured 2.2e-6 m at one contact node): a few Newton
-    # tolerances
-    tol = 5e-6 if backend == "cholmod" else 1e-9
-    assert np.abs(r1.positions - r0.positions).max() < tol
+    # each step's Newton iterate then ends elsewhere within Newton's tolerance (1e-6 m), the
+    # step control sees other Newton histories and may take other steps (measured: 65 steps
+    # with threaded BLAS, 69 single-threaded, against SuperLU's 65), and the differences
+    # carry over the steps (measured 2.2e-6 and 4.6e-6 m at one contact node). Bound: ten
+    # Newton tolerances, a tenth of the local error tolerance (1e-4 m per step)
+    assert abs(r1.stats["steps"] - r0.stats["steps"]) <= 0.1 * r0.stats["steps"]
+    assert np.abs(r1.positions - r0.positions).max() < 1e-5
 
 
 def _backward_error(a, x, b):
