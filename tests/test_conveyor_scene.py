@@ -416,7 +416,7 @@ def test_content_below_belt_counts_only_over_the_belt(snapshot_dir):
                           rotation_vectors=rv)  # fmt: skip
     d = content_below_belt(cm, res)["c0"]
     assert d["depth_m"] == pytest.approx(5e-4, abs=1e-12) and d["time_s"] == 0.03
-    assert d["limit_m"] == cm.laws["c0"]["belt"].max_penetration
+    assert d["limit_m"] == cm.laws["c0"]["belt"].damping_depth == pytest.approx(1e-4)
     res = SimpleNamespace(time=res.time[:3], positions=frames[:3], rotation_vectors=rv[:3])
     assert content_below_belt(cm, res)["c0"]["depth_m"] == pytest.approx(3e-4, abs=1e-12)
     res = SimpleNamespace(

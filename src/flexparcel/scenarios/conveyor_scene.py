@@ -857,8 +857,9 @@ def content_below_belt(cm: ConveyorModel, result: SimulationResult) -> dict[str,
     rigid box's lowest rounded corner, a flexible content's lowest node less its contact
     radius), counted only where that point lies over a belt's top face (a consignment that
     fell off the end or an edge is not below the belt). The content rests on its packaging
-    on the belt, so it should stay above the surface; the contact's own allowance is the
-    belt law's ``max_penetration`` (Table 6's s_max, 0.1 mm), reported as ``limit_m``.
+    on the belt, so it should stay above the surface; the contact's own scale, the belt
+    law's s_max (``damping_depth``, Table 6's 0.1 mm: the penetration at full damping), is
+    reported as ``limit_m``.
     Between frames deeper moments are missed. Placement name -> {"depth_m", "limit_m",
     "time_s"}; ``depth_m`` and ``time_s`` are None if the content never went below z = 0."""
     from flexparcel.elements.rotations import rotation_exp
@@ -889,7 +890,7 @@ def content_below_belt(cm: ConveyorModel, result: SimulationResult) -> dict[str,
         over &= np.abs(xy[..., 1]) <= 0.5 * scene.belt_width
         depth = np.where(over, -lowest, -np.inf).max(axis=1)  # (k,)
         law = cm.laws[name]["belt"]
-        row = {"depth_m": None, "limit_m": law.max_penetration, "time_s": None}
+        row = {"depth_m": None, "limit_m": law.damping_depth, "time_s": None}
         if depth.max() > 0.0:
             k = int(np.argmax(depth))
             row.update(depth_m=float(depth[k]), time_s=float(t[k]))
@@ -903,7 +904,7 @@ SUMMARY_NOTES = {
     "deflector_edge_depths": "per consignment, how far [m] packaging element edges came "
     "inside the contact thickness of a deflector's tip or end edge; null: never within it",
     "content_below_belt": "per consignment, how far [m] the content's lowest surface went "
-    "below the belt surface while over a belt (limit_m: the belt law's max_penetration); "
+    "below the belt surface while over a belt (limit_m: the belt law's s_max); "
     "null: never below it",
     "friction": "[mu_static, mu_dynamic] of each contact pair [-]",
     "consignments": "per consignment: keys carry their unit (_s, _m, _deg, _N); its notes "
