@@ -456,6 +456,28 @@ def conveyor_run(snapshot_dir, tmp_path_factory):
     return out, json.loads((out / "responses.json").read_text())
 
 
+def test_scene_with_a_transfer_runs_and_draws_both_belts(snapshot_dir, tmp_path):
+    # the command end to end with a [transfer] table: the layout records it, the checks run,
+    # and ParaView's belt holds both belts (two quads, each with its own speed)
+    import meshio
+
+    scene = tmp_path / "transfer.toml"
+    text = SCENE.read_text().replace('consignment = "consignment_small.toml"',
+                                     f'consignment = "{EXAMPLE.resolve().as_posix()}"')  # fmt: skip
+    scene.write_text(text + "\n[transfer]\ngap_m = 0.02\nlength_m = 0.5\nspeed_m_s = 1.0\n")
+    out = tmp_path / "run"
+    args = ["run", "conveyor", "--scene", str(scene), "--snapshot-dir", str(snapshot_dir),
+            "--t-end", "0.002", "--workers", "0", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    r = json.loads((out / "responses.json").read_text())
+    assert r["layout"]["conveyor"]["transfer"] == {"gap_m": 0.02, "length_m": 0.5,
+                                                   "speed_m_s": 1.0}  # fmt: skip
+    assert set(r["content_below_belt"]) == {"a", "b", "c", "d"}
+    belt = meshio.read(out / "paraview" / "belt_0000.vtu")
+    assert belt.points[:, 0].max() == pytest.approx(1.2 + 0.02 + 0.5)
+    assert sorted(set(belt.point_data["velocity_m_per_s"][:, 0])) == [1.0, 1.6]
+
+
 def test_four_consignments_move_downstream_and_are_deflected(conveyor_run):
     _, r = conveyor_run
     assert r["simulated_s"] == pytest.approx(0.01) and r["steps"] > 0 and r["wall_s"] > 0
