@@ -111,6 +111,45 @@ def test_normal_force_tangent_matches_finite_differences(where):
     np.testing.assert_allclose(dq[:3, :3], fd[:3], rtol=1e-5, atol=1e-6 * np.abs(fd).max())
 
 
+def test_box_corner_on_the_rounded_edge_tangent_matches_finite_differences():
+    # a rounded box's corner (offset b from its node, turned by R) on the side edge: the
+    # force's derivative by the node's position and spin, frictionless and at rest in spin
+    # (the rate's w x (dtheta x rho) term, left out by design, is then zero), so exact
+    from flexparcel.elements.rotations import rotation_exp
+
+    law = ContactLaw(stiffness=6.11e9, damping=5.91e6)
+    offset = np.array([[0.02, -0.01, -0.005]])
+    r0 = rotation_exp(np.array([0.2, -0.1, 0.4]))
+    corner = np.array([0.05, 0.1 + 0.003, -0.003])  # near the edge axis at z = -5 mm
+    pos = (corner - r0 @ offset[0])[None]
+    vel = np.array([[0.02, -0.01, 0.03, 0.0, 0.0, 0.0]])
+
+    def force(p, r):
+        f = np.zeros((1, 6))
+        dq = np.zeros((1, 6, 6))
+        plane_contact_forces(
+            np.array([0]), offset, np.array([0.003]), np.array([0]), np.array([0]),
+            np.ones(1), np.full(1, 1e-4), np.zeros((1, 3)), N[None], np.array([[0.3, 0.0, 0.0]]),
+            AXIS[None], EXTENT[None], law.packed()[None], p, r[None], vel, f, dq,
+            np.zeros((1, 6, 6)), np.ones(1), 1e9, np.zeros(1), np.zeros((1, 3)),
+            np.zeros((1, 3)), 1e-3, p, r[None],
+        )  # fmt: skip
+        return f[0], dq[0]
+
+    f0, dq = force(pos, r0)
+    assert np.linalg.norm(f0[:3]) > 0.0
+    h = 1e-8
+    for j in range(6):
+        dp, dr = np.zeros((1, 3)), np.zeros(3)
+        if j < 3:
+            dp[0, j] = h
+        else:
+            dr[j - 3] = h
+        fd = (force(pos + dp, rotation_exp(dr) @ r0)[0]
+              - force(pos - dp, rotation_exp(-dr) @ r0)[0]) / (2 * h)  # fmt: skip
+        np.testing.assert_allclose(dq[:3, j], fd[:3], rtol=1e-5, atol=1e-6 * np.abs(dq[:3]).max())
+
+
 def test_friction_on_the_edge_leaves_out_only_the_turning_slip_direction():
     # with friction the tangent leaves out how the slip direction and the arm turn with the
     # normal on the rounded edge: an error of the order of the friction force over the

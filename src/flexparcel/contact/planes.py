@@ -83,38 +83,70 @@ class PlaneBounds:
 
 
 @nb.njit(cache=True)
+def _gap_into(px, py, pz, radius, point, normal, axis, extent, n_out, curv_out):
+    """:func:`plane_gap` without allocation (the contact kernel calls it for every point in
+    every evaluation): returns ``(s, turning)``; only for a point in contact (s > 0) it
+    writes the normal into ``n_out`` (3,) and, where ``turning`` (on a rounded edge),
+    ``dn/dp`` into ``curv_out`` (3, 3)."""
+    rb = extent[2]
+    if rb == 0.0:  # a half-space
+        s = radius - (normal[0] * (px - point[0]) + normal[1] * (py - point[1])
+                      + normal[2] * (pz - point[2]))  # fmt: skip
+        if s > 0.0:
+            n_out[:] = normal
+        return s, False
+    # from the rectangle's centre, which lies r_b below the surface
+    d0 = px - point[0] + rb * normal[0]
+    d1 = py - point[1] + rb * normal[1]
+    d2 = pz - point[2] + rb * normal[2]
+    w0 = normal[1] * axis[2] - normal[2] * axis[1]  # w = n x u, across the plane
+    w1 = normal[2] * axis[0] - normal[0] * axis[2]
+    w2 = normal[0] * axis[1] - normal[1] * axis[0]
+    a = axis[0] * d0 + axis[1] * d1 + axis[2] * d2
+    b = w0 * d0 + w1 * d1 + w2 * d2
+    free_u = abs(a) < extent[0]
+    free_w = abs(b) < extent[1]
+    ac = min(max(a, -extent[0]), extent[0])
+    bc = min(max(b, -extent[1]), extent[1])
+    d0 -= ac * axis[0] + bc * w0
+    d1 -= ac * axis[1] + bc * w1
+    d2 -= ac * axis[2] + bc * w2
+    dist = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    s = radius + rb - dist
+    if s <= 0.0:
+        return s, False
+    if dist <= 1e-12:  # on the rectangle itself, deep inside the slab: push out of the top
+        n_out[:] = normal
+        return s, False
+    n_out[0], n_out[1], n_out[2] = d0 / dist, d1 / dist, d2 / dist
+    if free_u and free_w:  # over the top or bottom face: flat
+        return s, False
+    # dn/dp = (I - n n^T) P / dist, P the projection out of the directions q slides along
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                pkj = (1.0 if k == j else 0.0) - (axis[k] * axis[j] if free_u else 0.0)
+                if free_w:
+                    wk = w0 if k == 0 else (w1 if k == 1 else w2)
+                    wj = w0 if j == 0 else (w1 if j == 1 else w2)
+                    pkj -= wk * wj
+                acc += ((1.0 if i == k else 0.0) - n_out[i] * n_out[k]) * pkj
+            curv_out[i, j] = acc / dist
+    return s, True
+
+
+@nb.njit(cache=True)
 def plane_gap(p, radius, point, normal, axis, extent):
     """Penetration ``s`` [m] (> 0 in contact) of a point ``p`` (3,) with contact ``radius``
     [m] into a plane (``point``, unit ``normal``; ``axis`` and ``extent`` = [half length,
     half width, edge radius] of a bounded one, edge radius 0: a half-space), the contact
-    normal ``n`` (3,) and its derivative ``dn/dp`` (3, 3) (zero on a flat face)."""
+    normal ``n`` (3,) and its derivative ``dn/dp`` (3, 3) (zero on a flat face; both zero
+    out of contact)."""
+    n = np.zeros(3)
     curv = np.zeros((3, 3))
-    rb = extent[2]
-    if rb == 0.0:
-        s = radius - (normal[0] * (p[0] - point[0]) + normal[1] * (p[1] - point[1])
-                      + normal[2] * (p[2] - point[2]))  # fmt: skip
-        return s, normal.copy(), curv
-    u = axis
-    w = np.cross(normal, u)
-    d = p - point + rb * normal  # from the rectangle's centre, r_b below the surface
-    a = u[0] * d[0] + u[1] * d[1] + u[2] * d[2]
-    b = w[0] * d[0] + w[1] * d[1] + w[2] * d[2]
-    free_u = abs(a) < extent[0]
-    free_w = abs(b) < extent[1]
-    d -= min(max(a, -extent[0]), extent[0]) * u + min(max(b, -extent[1]), extent[1]) * w
-    dist = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-    s = radius + rb - dist
-    if dist <= 1e-12:  # on the rectangle itself, deep inside the slab: push out of the top
-        return s, normal.copy(), curv
-    nn = d / dist
-    if s > 0.0 and not (free_u and free_w):
-        proj = np.eye(3)
-        if free_u:
-            proj -= np.outer(u, u)
-        if free_w:
-            proj -= np.outer(w, w)
-        curv = (np.eye(3) - np.outer(nn, nn)) @ proj / dist
-    return s, nn, curv
+    s, _ = _gap_into(p[0], p[1], p[2], radius, point, normal, axis, extent, n, curv)
+    return s, n, curv
 
 
 @nb.njit(cache=True)
@@ -159,6 +191,8 @@ def plane_contact_forces(
     Returns (number of points in contact, deepest penetration [m], its point, worst ratio of
     penetration to the law's max_penetration).
     """
+    n_buf = np.zeros(3)  # the contact normal and dn/dp of the current point
+    curv = np.zeros((3, 3))
     n_contact = 0
     deepest = 0.0
     deepest_pt = -1
@@ -173,10 +207,12 @@ def plane_contact_forces(
         r = rot[node]
         rho = r @ cp_offset[q]
         x = pos[node]
-        s, n, curv = plane_gap(x + rho, cp_radius[q], plane_point[pl], plane_normal[pl],
-                               plane_axis[pl], plane_extent[pl])  # fmt: skip
+        s, turning = _gap_into(x[0] + rho[0], x[1] + rho[1], x[2] + rho[2], cp_radius[q],
+                               plane_point[pl], plane_normal[pl], plane_axis[pl],
+                               plane_extent[pl], n_buf, curv)  # fmt: skip
         if s <= 0.0:
             continue
+        n = n_buf.copy()
         n_contact += 1
         if s > deepest:
             deepest = s
@@ -227,7 +263,6 @@ def plane_contact_forces(
         # force derivatives (3 x 6)
         dfn_q = dfn_ds * ds_dq
         dfn_v = dfn_dsd * dsd_dv
-        turning = curv[0, 0] + curv[1, 1] + curv[2, 2] > 0.0  # tr((I - nn^T) P) > 0 iff curv != 0
         if turning:
             # the normal turning on a rounded edge: dn/d[x, theta] = curv dp/d[x, theta]; the
             # rate s' = -n . vc turns with it

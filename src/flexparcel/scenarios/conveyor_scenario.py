@@ -104,7 +104,8 @@ def deflector_friction_table(mu: float | None):
         FrictionPair,
     )
 
-    mu = CONVEYOR_PARAMETERS[5].check(mu, "deflector_friction")
+    (param,) = (q for q in CONVEYOR_PARAMETERS if q.name == "deflector_friction")
+    mu = param.check(mu)
     row = FrictionPair(mu, mu, "study parameter deflector_friction")
     table = dict(DEFAULT_FRICTION_TABLE)
     table.update({key: row for key in table if key[1] == DEFLECTOR})
