@@ -73,7 +73,8 @@ def scenario_snapshot(
 
 
 _SETUP = {"consignment", "element_size_mm", "snapshot", "snapshot_dir", "t_end_s", "air_drag"}
-_CONVEYOR_SETUP = {"consignments", "element_size_mm", "snapshot_dir", "t_end_s", "workers"}
+_CONVEYOR_SETUP = {"consignments", "scene", "element_size_mm", "snapshot_dir", "t_end_s",
+                   "workers"}
 
 
 def _check_setup(name: str, setup: Mapping[str, object], allowed: set[str]) -> None:
@@ -150,25 +151,37 @@ def drop_horizontal(params: Mapping[str, float], **setup: object) -> dict[str, f
 
 
 def conveyor(params: Mapping[str, float], **setup: object) -> dict[str, float]:
-    """The conveyor scene (``consignments``: a list of presets or TOML files, default the
+    """The conveyor scene (``scene``: a scene TOML file, see ``examples/conveyor_scene.toml``,
+    taken from the working directory; its belt, deflectors, placements and simulated time,
+    with the study's parameters replacing its belt speed, deflector angle and friction;
+    ``consignments``: a list of presets or TOML files for the default queue, default the
     paper's four; ``workers``: as for ``flexparcel run conveyor``): the scalar responses per
-    consignment that the run reached. A consignment that never leaves the belt has no exit
-    response (that is the outcome, not a failure); a study naming it as a target gets the
-    run reported as missing that response."""
-    from flexparcel.scenarios.conveyor_scene import PAPER_CONSIGNMENTS
+    consignment and for the group that the run reached. A consignment that never leaves the
+    belt has no exit response (that is the outcome, not a failure); a calibration study naming
+    it as a target gets the run reported as missing that response, a design study records it
+    as absent. The run key holds the scene's path, not its content: a study whose scene file
+    changed needs a new store."""
+    from flexparcel.scenarios.conveyor_scene import PAPER_CONSIGNMENTS, load_scene_file
     from flexparcel.scenarios.registry import get_scenario
 
     _check_setup("conveyor", setup, _CONVEYOR_SETUP)
-    scenario = get_scenario("conveyor", workers=int(setup.get("workers", 2)))
+    scene = None if setup.get("scene") is None else load_scene_file(str(setup["scene"]))
+    if scene is not None and scene.placements and "consignments" in setup:
+        raise ValueError("conveyor: the setup gives 'consignments' and a 'scene' with "
+                         "[[consignment]] placements; give one of them")  # fmt: skip
+    scenario = get_scenario("conveyor", scene=scene, workers=int(setup.get("workers", 2)))
     _check_parameters("conveyor", scenario, params)
     scenario.resolve(dict(params))
-    names = [str(n) for n in setup.get("consignments", PAPER_CONSIGNMENTS)]
-    snaps = {
-        Path(n).stem.replace("/", "").upper(): scenario_snapshot(
-            n, setup.get("element_size_mm"), None, str(setup.get("snapshot_dir", "snapshots"))
-        )
-        for n in names
-    }
+    if scene is not None and "consignments" not in setup:
+        refs = dict(scene.consignments)
+    else:
+        names = [str(n) for n in setup.get("consignments", PAPER_CONSIGNMENTS)]
+        refs = {Path(n).stem.replace("/", "").upper(): n for n in names}
+    size_mm = setup.get("element_size_mm")
+    if size_mm is None and scene is not None and scene.element_size is not None:
+        size_mm = scene.element_size * 1e3
+    snap_dir = str(setup.get("snapshot_dir", "snapshots"))
+    snaps = {key: scenario_snapshot(ref, size_mm, None, snap_dir) for key, ref in refs.items()}
     result = scenario.run(snaps, dict(params), t_end=setup.get("t_end_s"))
     return {k: float(r.value) for k, r in scenario.responses(result).items() if r.reached}
 
