@@ -73,8 +73,7 @@ def scenario_snapshot(
 
 
 _SETUP = {"consignment", "element_size_mm", "snapshot", "snapshot_dir", "t_end_s", "air_drag"}
-_CONVEYOR_SETUP = {"consignments", "scene", "element_size_mm", "snapshot_dir", "t_end_s",
-                   "workers"}
+_CONVEYOR_SETUP = {"consignments", "scene", "element_size_mm", "snapshot_dir", "t_end_s", "workers"}
 
 
 def _check_setup(name: str, setup: Mapping[str, object], allowed: set[str]) -> None:
