@@ -19,7 +19,7 @@ import numpy as np
 
 from flexparcel.io.atomic import write_atomic
 
-__all__ = ["write_report", "write_atomic"]
+__all__ = ["write_report", "write_atomic", "screening_section"]
 
 
 def _finite(obj):
@@ -130,6 +130,73 @@ def _screening_figures(figs: _Figures, exp: str, res: dict) -> str:
         fig.suptitle(f"{exp}: screening of {r}", fontsize=10)
         out.append(figs.add(fig, f"screening_{exp}_{r}"))
     return "".join(out)
+
+
+def screening_section(figs: _Figures, e: str, sc: dict) -> str:
+    """The HTML of experiment ``e``'s screening result ``sc``: the design, the ANOVA (or Lenth)
+    table per response, the response plots and Pareto charts."""
+    parts: list[str] = []
+    add = parts.append
+    add("<h3>Screening</h3>")
+    add(
+        f"<p>{sc['design']} design ({len(sc['coded'])} runs"
+        + (f", generators {', '.join(sc['generators'])}" if sc["generators"] else "")
+        + f"). Significant parameters: <b>{', '.join(sc['significant'])}</b>; frozen: "
+        + (", ".join(f"{k} = {_fmt(v)}" for k, v in sc["frozen"].items()) or "none")
+        + "</p>"
+    )
+    hdr = [*sc["parameters"], *sc["responses"]]
+    rows = [
+        [*coded, *(sc["responses"][r][k] for r in sc["responses"])]
+        for k, coded in enumerate(sc["coded"])
+    ]
+    add(
+        "<details><summary>factorial design table (coded units)</summary>"
+        + _table(hdr, rows)
+        + "</details>"
+    )
+    for r, an in sc["anova"].items():
+        title = "ANOVA" if an["method"] == "anova" else "Lenth effects"
+        add(f"<h4>{title}: {html.escape(r)}</h4>")
+        if an.get("method_reason"):
+            add(f"<p class='note'>method: {html.escape(an['method_reason'])}</p>")
+        trs = [
+            [row["term"], row["df"], row["sum_sq"], row["mean_sq"], row["F"], row["p"]]
+            + [row["effect"], None if row["term"] == "Residual" else row["significant"]]
+            for row in an["table"]
+        ]
+        cls = [
+            "" if row["term"] == "Residual" else ("sig" if row["significant"] else "ns")
+            for row in an["table"]
+        ]
+        add(_table(["term", "df", "SS", "MS", "F", "p", "effect", "significant"], trs, cls))
+        if an["method"] == "lenth":
+            add(
+                f"<p class='note'>PSE = {_fmt(an['pse'])}, margin of error = "
+                f"{_fmt(an['margin_of_error'])}</p>"
+            )
+        else:
+            add(
+                "<p class='note'>Main effects and two-factor interactions; higher-order "
+                "interactions pooled into the residual. alpha = "
+                f"{an['alpha']}</p>"
+            )
+        if an["aliased"]:
+            add(
+                "<p class='note'>aliased (not estimated): "
+                + ", ".join(f"{k} = {v}" for k, v in list(an["aliased"].items())[:30])
+                + "</p>"
+            )
+    add(_screening_figures(figs, e, sc))
+    if sc.get("not_analysed"):
+        add(
+            "<p class='note'>not analysed: "
+            + "; ".join(
+                f"{html.escape(k)} ({html.escape(v)})" for k, v in sc["not_analysed"].items()
+            )
+            + "</p>"
+        )
+    return "".join(parts)
 
 
 def _log_axis(axis) -> None:
@@ -299,59 +366,8 @@ def write_report(study) -> Path:
             f"<code>{html.escape(json.dumps(dict(exp.setup)))}</code>; parameters "
             f"{', '.join(exp.parameters)}</p>"
         )
-        sc = screening[e]
-        if sc:
-            add("<h3>Screening</h3>")
-            add(
-                f"<p>{sc['design']} design ({len(sc['coded'])} runs"
-                + (f", generators {', '.join(sc['generators'])}" if sc["generators"] else "")
-                + f"). Significant parameters: <b>{', '.join(sc['significant'])}</b>; frozen: "
-                + (", ".join(f"{k} = {_fmt(v)}" for k, v in sc["frozen"].items()) or "none")
-                + "</p>"
-            )
-            hdr = [*sc["parameters"], *sc["responses"]]
-            rows = [
-                [*coded, *(sc["responses"][r][k] for r in sc["responses"])]
-                for k, coded in enumerate(sc["coded"])
-            ]
-            add(
-                "<details><summary>factorial design table (coded units)</summary>"
-                + _table(hdr, rows)
-                + "</details>"
-            )
-            for r, an in sc["anova"].items():
-                title = "ANOVA" if an["method"] == "anova" else "Lenth effects"
-                add(f"<h4>{title}: {html.escape(r)}</h4>")
-                if an.get("method_reason"):
-                    add(f"<p class='note'>method: {html.escape(an['method_reason'])}</p>")
-                trs = [
-                    [row["term"], row["df"], row["sum_sq"], row["mean_sq"], row["F"], row["p"]]
-                    + [row["effect"], None if row["term"] == "Residual" else row["significant"]]
-                    for row in an["table"]
-                ]
-                cls = [
-                    "" if row["term"] == "Residual" else ("sig" if row["significant"] else "ns")
-                    for row in an["table"]
-                ]
-                add(_table(["term", "df", "SS", "MS", "F", "p", "effect", "significant"], trs, cls))
-                if an["method"] == "lenth":
-                    add(
-                        f"<p class='note'>PSE = {_fmt(an['pse'])}, margin of error = "
-                        f"{_fmt(an['margin_of_error'])}</p>"
-                    )
-                else:
-                    add(
-                        "<p class='note'>Main effects and two-factor interactions; higher-order "
-                        "interactions pooled into the residual. alpha = "
-                        f"{an['alpha']}</p>"
-                    )
-                if an["aliased"]:
-                    add(
-                        "<p class='note'>aliased (not estimated): "
-                        + ", ".join(f"{k} = {v}" for k, v in list(an["aliased"].items())[:30])
-                        + "</p>"
-                    )
-            add(_screening_figures(figs, e, sc))
+        if screening[e]:
+            add(screening_section(figs, e, screening[e]))
 
         d, fit = design[e], fits[e]
         if d:

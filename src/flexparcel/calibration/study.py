@@ -105,6 +105,9 @@ class ExperimentConfig:
     high_runs: int | None = None
     #: Stated wall time of one run [s] for the dry-run plan when the store has none measured.
     estimated_run_s: float | None = None
+    #: Responses a design study analyses; a run may lack one (not reached: a consignment that
+    #: never leaves the belt has no exit time), which is recorded as absent, not a failure.
+    outcomes: tuple[str, ...] = ()
 
     @property
     def responses(self) -> tuple[str, ...]:
@@ -141,6 +144,15 @@ class StudyConfig:
     reference_name: str = "reference"
     #: Fidelity levels: ``{"low": setup, "high": setup}``, or None for a single-fidelity study.
     fidelity: Mapping[str, Mapping] | None = None
+    #: ``calibration`` or ``design`` (:data:`PURPOSES`).
+    purpose: str = "calibration"
+    #: A design study's maps: ``{"axes": (p1, p2), "contours": (outcome, ...) or None}``.
+    maps: Mapping | None = None
+
+    @property
+    def stages(self) -> tuple[str, ...]:
+        """The stages this study runs: :data:`STAGES`, or :data:`DESIGN_STAGES` for a design."""
+        return DESIGN_STAGES if self.purpose == "design" else STAGES
 
     def experiment_space(self, experiment: str, names: Sequence[str] | None = None):
         """The parameters of ``experiment`` (or ``names`` of them) with its own bounds applied."""
@@ -237,7 +249,16 @@ _TOP_KEYS = (
     "optimisation",
     "validation",
     "fidelity",
+    "purpose",
+    "maps",
 )
+
+#: What a study is for: ``calibration`` fits parameters to measured targets; ``design``
+#: explores a design space (screen + Latin hypercube) and maps its outcomes, with no targets.
+PURPOSES = ("calibration", "design")
+
+#: Stages of a design study (it has no targets to fit, optimise or validate).
+DESIGN_STAGES = ("screen", "design", "report")
 
 
 def load_study(path: str | Path) -> StudyConfig:
@@ -267,6 +288,9 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
     name = top.get("name", "str", path.stem)
     random_state = top.get("random_state", "int", 0)
     modules = tuple(top.str_list("simulator_modules", []))
+    purpose = top.get("purpose", "str", "calibration")
+    if purpose not in PURPOSES:
+        top.fail("purpose", f"must be one of {', '.join(map(repr, PURPOSES))}, got {purpose!r}")
 
     # parameters
     ptable = top.get("parameters", "table", required=True)
@@ -312,7 +336,7 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
         top.fail("experiments", "no experiments defined")
     experiments = {}
     for ename, edata in etable.items():
-        experiments[ename] = _parse_experiment(path, ename, edata, space)
+        experiments[ename] = _parse_experiment(path, ename, edata, space, purpose)
     used = {p for e in experiments.values() for p in e.parameters}
     unused = [p for p in space.names if p not in used]
     if unused:
@@ -391,6 +415,7 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
     except ValueError as exc:
         _Fields(path, "experiments", {}, ()).fail("targets", str(exc))
     fidelity = _parse_fidelity(path, top, experiments)
+    maps = _parse_maps(path, top, space, experiments, purpose)
     # The optimiser searches where every experiment that varies a parameter has data.
     for p in space.names:
         box = [e.bounds.get(p, (space[p].lower, space[p].upper)) for e in experiments.values()]
@@ -427,7 +452,30 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
         validate=va.get("enabled", "bool", True),
         reference_name=reference_name,
         fidelity=fidelity,
+        purpose=purpose,
+        maps=maps,
     )
+
+
+def _parse_maps(path: Path, top: _Fields, space: ParameterSpace, experiments, purpose: str):
+    """A design study's ``[maps]``: the two parameters its maps are drawn over (default the
+    first two) and the outcomes drawn as contours (default: every outcome that is not 0/1)."""
+    if purpose != "design":
+        if "maps" in top.data:
+            top.fail("maps", "only a design study (purpose = 'design') draws maps")
+        return None
+    m = _Fields(path, "maps", top.get("maps", "table", {}), ("axes", "contours"))
+    axes = m.str_list("axes", list(space.names[:2]))
+    if len(axes) != 2 or len(set(axes)) != 2 or not all(a in space for a in axes):
+        m.fail("axes", f"must name two different parameters of {', '.join(space.names)}; "
+                       f"got {axes!r}")  # fmt: skip
+    contours = m.str_list("contours")
+    if contours is not None:
+        known = {o for e in experiments.values() for o in e.outcomes}
+        bad = [o for o in contours if o not in known]
+        if bad:
+            m.fail("contours", f"{bad[0]!r} is not an outcome of any experiment")
+    return {"axes": tuple(axes), "contours": None if contours is None else tuple(contours)}
 
 
 def _parse_fidelity(path: Path, top: _Fields, experiments) -> dict | None:
@@ -514,7 +562,9 @@ def _simulator_reference(path: Path, name: str) -> str:
     return name
 
 
-def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> ExperimentConfig:
+def _parse_experiment(
+    path: Path, ename: str, edata, space: ParameterSpace, purpose: str = "calibration"
+) -> ExperimentConfig:
     t = f"experiments.{ename}"
     f = _Fields(
         path,
@@ -531,6 +581,7 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
             "description",
             "bounds",
             "estimated_run_s",
+            "outcomes",
         ),
     )
     simulator = _simulator_reference(path, f.get("simulator", "str", required=True))
@@ -560,7 +611,18 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
     if estimated is not None and estimated <= 0:
         f.fail("estimated_run_s", "must be > 0 [s]")
     ttable = f.get("targets", "table")
-    if not ttable:
+    outcomes = tuple(f.str_list("outcomes", []))
+    if purpose == "design":
+        if ttable:
+            f.fail("targets", "a design study (purpose = 'design') has no targets; list the "
+                              "responses to map under outcomes")  # fmt: skip
+        if not outcomes:
+            f.fail("outcomes", "missing: a design study's experiment lists the responses it maps")
+        ttable = {}
+    elif outcomes:
+        f.fail("outcomes", "only a design study (purpose = 'design') takes outcomes; a "
+                           "calibration lists targets and monitor")  # fmt: skip
+    elif not ttable:
         f.fail("targets", "missing: every experiment needs at least one target response")
     targets = []
     for rname, tdata in ttable.items():
@@ -659,6 +721,7 @@ def _parse_experiment(path: Path, ename: str, edata, space: ParameterSpace) -> E
         bounds=bounds,
         high_runs=high_runs,
         estimated_run_s=None if estimated is None else float(estimated),
+        outcomes=outcomes,
     )
 
 
@@ -800,8 +863,9 @@ class Study:
         return res
 
     def active_parameters(self, exp: ExperimentConfig) -> list[str]:
-        """Parameters varied in the experiment's design: the screening result, or all."""
-        if exp.screening is None:
+        """Parameters varied in the experiment's design: the screening result, or all (always
+        all in a design study: its screen ranks the parameters, the map needs every one)."""
+        if exp.screening is None or self.config.purpose == "design":
             return list(exp.parameters)
         res = self._require("screening", exp.name, "design", "screen")
         return list(res["significant"])
@@ -839,7 +903,7 @@ class Study:
                     "failed; an ANOVA needs the complete design (see the store's error texts, "
                     "then rerun with --retry-failed)"
                 )
-            responses = {r: np.array([row["responses"][r] for row in rows]) for r in exp.responses}
+            responses, skipped = self._screened_responses(exp, rows)
             sc = exp.screening
             try:
                 significant, fitted = screen_responses(
@@ -862,8 +926,11 @@ class Study:
                 "anova": {r: s.to_dict() for r, s in fitted.items()},
                 "significant": significant,
                 "frozen": {p: sub[p].nominal_value for p in exp.parameters if p not in significant},
+                "not_analysed": skipped,
             }
-            if not significant:
+            if self.config.purpose == "design":
+                result["frozen"] = {}  # a design study's hypercube varies every parameter
+            elif not significant:
                 raise RuntimeError(
                     f"screening of '{exp.name}' found no significant parameter at alpha = "
                     f"{sc.alpha}; nothing to calibrate against its targets"
@@ -871,6 +938,31 @@ class Study:
             self.store.put_result("screening", exp.name, result)
             out[exp.name] = result
         return out
+
+    def _screened_responses(self, exp: ExperimentConfig, rows: list[dict]):
+        """The responses the screen analyses, ``{name: values}``, and those it leaves out with
+        the reason, ``{name: reason}``. A calibration analyses its targets and monitored
+        responses (every run has them); a design study its outcomes that every factorial run
+        reached and that vary over the design."""
+        if self.config.purpose != "design":
+            return {r: np.array([row["responses"][r] for row in rows]) for r in exp.responses}, {}
+        out, skipped = {}, {}
+        for r in exp.outcomes:
+            values = [(row["responses"] or {}).get(r) for row in rows]
+            if any(v is None for v in values):
+                n = sum(v is None for v in values)
+                skipped[r] = f"not reached in {n} of {len(values)} factorial runs"
+            elif np.ptp(values) == 0.0:
+                skipped[r] = f"the same in every factorial run ({values[0]:g})"
+            else:
+                out[r] = np.array(values, dtype=float)
+        if not out:
+            raise StudyConfigError(
+                f"stage 'screen', experiment '{exp.name}': no outcome can be analysed ("
+                + "; ".join(f"{k}: {v}" for k, v in skipped.items())
+                + ")"
+            )
+        return out, skipped
 
     def design(self) -> dict:
         """Run the Latin-hypercube designs (extending earlier ones); returns info per experiment."""
@@ -989,6 +1081,7 @@ class Study:
 
     def fit(self) -> dict:
         """Fit one GPR surrogate per target response; returns ``{experiment: result}``."""
+        self.check_stages(["fit"])
         with _blas_threads(self.config.threads):
             return self._fit()
 
@@ -1171,13 +1264,15 @@ class Study:
                     what += f"{len(exp.screening.generators)}) fractional factorial"
                 what += f", ANOVA at alpha = {exp.screening.alpha}"
                 rows.append(("screen", exp, low, n, what))
-            k_act = "screened" if exp.screening is not None else str(len(exp.parameters))
+            k_act = str(len(exp.parameters))
+            if exp.screening is not None and c.purpose != "design":
+                k_act = "screened"
             rows.append(
                 ("design", exp, low, exp.design_runs, f"Latin hypercube over {k_act} parameters")
             )
             if c.fidelity is not None:
                 rows.append(("design", exp, high, exp.high_runs, "high-fidelity Latin hypercube"))
-        if c.validate:
+        if c.validate and "validate" in c.stages:
             for exp in c.experiments.values():
                 rows.append(("validate", exp, high, 1, "the simulator at the optimum"))
         out_rows, total, unknown = [], 0.0, 0
@@ -1214,8 +1309,15 @@ class Study:
                 f"GPR, kernel by {c.cv_folds}-fold CV among {', '.join(c.kernels)}, "
                 f"{c.holdout_fraction:.0%} hold-out"
                 + ("; co-kriging of the low and high levels" if c.fidelity else "")
+            )
+            if c.purpose != "design"
+            else (
+                f"GPR contours of each outcome over {' and '.join(c.maps['axes'])} (kernel by "
+                "CV over all runs, no hold-out); 0/1 outcomes as maps of the runs"
             ),
-            "optimiser": f"Nelder-Mead from {c.opt_starts} starts, weights 1/range (eq. 11)",
+            "optimiser": f"Nelder-Mead from {c.opt_starts} starts, weights 1/range (eq. 11)"
+            if c.purpose != "design"
+            else "none (a design study has no targets)",
         }
 
     def calibrated_parameters(self) -> list[str]:
@@ -1231,6 +1333,7 @@ class Study:
 
     def optimise(self) -> dict:
         """Minimise the weighted error on the surrogates; returns the optimum and predictions."""
+        self.check_stages(["optimise"])
         with _blas_threads(self.config.threads):
             return self._optimise()
 
@@ -1312,6 +1415,7 @@ class Study:
 
     def validate(self) -> dict:
         """Re-run every experiment's simulator at the optimum; returns the comparison."""
+        self.check_stages(["validate"])
         c = self.config
         opt = self._require("optimise", "", "validate", "optimise")
         batches = []
@@ -1359,6 +1463,10 @@ class Study:
         from flexparcel.calibration.summary import write_summary
 
         with _blas_threads(self.config.threads):
+            if self.config.purpose == "design":
+                from flexparcel.calibration.design_report import write_design_report
+
+                return write_design_report(self)
             write_summary(self)
             return write_report(self)
 
@@ -1386,20 +1494,35 @@ class Study:
             if result:
                 self.store.delete_results(result)
 
-    def run(self, stages: Sequence[str] = STAGES) -> dict:
-        """Run ``stages`` in pipeline order; returns ``{stage: result}``."""
+    def run(self, stages: Sequence[str] | None = None) -> dict:
+        """Run ``stages`` (default: all of the study's, :attr:`StudyConfig.stages`) in pipeline
+        order; returns ``{stage: result}``."""
+        own = self.config.stages
+        stages = own if stages is None else stages
         unknown = [s for s in stages if s not in STAGES]
         if unknown:
             raise ValueError(f"unknown stage {unknown[0]!r}; stages: {', '.join(STAGES)}")
+        self.check_stages(stages)
         self.check()
         out = {}
-        for s in STAGES:
+        for s in own:
             if s not in stages:
                 continue
             if s == "validate" and not self.config.validate:
                 continue
             out[s] = getattr(self, s)()
         return out
+
+    def check_stages(self, stages: Sequence[str]) -> None:
+        """Refuse, naming the study's purpose, a stage that does not apply to it (a design
+        study has no targets to fit, optimise or validate)."""
+        foreign = [s for s in stages if s not in self.config.stages]
+        if foreign:
+            raise StudyConfigError(
+                f"{self.config.path}: stage '{foreign[0]}' does not apply to a "
+                f"{self.config.purpose} study (purpose = '{self.config.purpose}'); its stages "
+                f"are {', '.join(self.config.stages)}"
+            )
 
 
 def _span(rng: Sequence[float], key: str) -> float:

@@ -74,12 +74,13 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _stages(arg: list[str] | None) -> list[str]:
+def _stages(arg: list[str] | None) -> list[str] | None:
+    """The stages asked for, or None for all of the study's own."""
     if not arg:
-        return list(_STAGES)
+        return None
     names = [s.strip() for a in arg for s in a.split(",") if s.strip()]
     if "all" in names:
-        return list(_STAGES)
+        return None
     bad = [s for s in names if s not in _STAGES]
     if bad:
         raise ValueError(f"unknown stage {bad[0]!r}; stages: {', '.join(_STAGES)}, all")
@@ -154,6 +155,9 @@ def run(args: argparse.Namespace) -> int:
         if args.dry_run:
             print_plan(study.plan())
             return 0
+        if stages is None:
+            stages = list(study.config.stages)
+        study.check_stages(stages)
         if args.reset:
             study.reset(args.reset)
         for stage in _STAGES:
