@@ -2,6 +2,7 @@
 name through the entry points without the calibration layer loading FE code, refusing bad
 input by name, and failing a run whose response was not reached instead of returning 0."""
 
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -10,7 +11,8 @@ import pytest
 
 from flexparcel.calibration.simulators import get_simulator
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "consignment_small.toml"
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "consignment_small.toml"
 
 
 def test_the_four_tests_are_registered_through_entry_points_without_fe_imports():
@@ -64,3 +66,24 @@ def test_a_response_not_reached_fails_the_run_with_its_reason(snapshot_dir):
     snap = snapshot_dir / "consignment_small" / "snapshot.npz"
     with pytest.raises(ValueError, match="first_swing_mm not reached"):
         get_simulator("swing").func({}, consignment=str(EXAMPLE), snapshot=str(snap), t_end_s=0.02)
+
+
+def test_conveyor_runs_a_study_scene_with_its_placements(snapshot_dir, tmp_path):
+    """setup.scene: the scene file's belt, deflector and placements, names and all (the example
+    design study's scene, 4 ms: the consignments have not reached the deflector yet)."""
+    scene = str(ROOT / "examples" / "conveyor_design_scene.toml")
+    snaps = tmp_path / "snaps"
+    snaps.mkdir()
+    shutil.copy(
+        snapshot_dir / "consignment_small" / "snapshot.npz", snaps / "CONSIGNMENT_SMALL_20mm.npz"
+    )
+    conveyor = get_simulator("conveyor").func
+    out = conveyor({"belt_speed": 2.0}, scene=scene, t_end_s=0.004, snapshot_dir=str(snaps))
+    # the scene's placements: a at y = 0.1 m, b at y = -0.13 m, both at x = 0.07 m moving at
+    # 2 m/s (4 ms: 8 mm on)
+    assert out["a.final_y"] == pytest.approx(0.1, abs=1e-3)
+    assert out["b.final_y"] == pytest.approx(-0.13, abs=1e-3)
+    assert out["a.final_x"] == pytest.approx(0.078, abs=2e-3)
+    assert out["group.peak_contact_force"] == 0.0
+    with pytest.raises(ValueError, match="'consignments' and a 'scene'"):
+        conveyor({}, scene=scene, consignments=["KPBW"], snapshot_dir=str(snaps))
