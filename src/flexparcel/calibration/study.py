@@ -16,6 +16,10 @@ in the study store, so every stage can also be run alone later:
 ``optimise``  weighted error of all targets minimised by multi-start bounded Nelder-Mead;
 ``validate``  the simulators re-run at the optimum (appended to the store);
 ``report``    ``results.json`` and a self-contained ``report.html``.
+
+A design study (``purpose = "design"``) has no targets: it runs ``screen`` (ranking, nothing
+frozen), ``design`` (over every parameter) and ``report``
+(:mod:`flexparcel.calibration.design_report`: maps and contours of its outcomes).
 """
 
 from __future__ import annotations
