@@ -131,12 +131,30 @@ def test_design_study_runs_screen_and_hypercube_and_maps_its_outcomes(tmp_path):
         (('axes = ["speed", "angle"]', 'axes = ["speed", "angle"]\ncontours = ["nope"]'),
          "contours"),
         (('purpose = "design"', ""), "outcomes"),
+        (('axes = ["speed", "angle"]', 'axes = ["speed", "angle"]\nflags = ["jam"]'), "flags"),
     ],
 )  # fmt: skip
 def test_bad_design_study_names_the_field(tmp_path, edit, field):
     path = write(tmp_path, STUDY.replace(*edit))
     with pytest.raises(StudyConfigError, match=rf"\b{field}\b"):
         load_study(path)
+
+
+def test_flags_and_contours_are_what_the_study_names(tmp_path):
+    """[maps] flags and contours choose the drawings: a listed flag is a map, an outcome in
+    neither list is tabulated only."""
+    text = STUDY.replace(
+        'axes = ["speed", "angle"]',
+        'axes = ["speed", "angle"]\nflags = ["jammed"]\ncontours = ["spread"]',
+    )
+    text = text.replace("runs = 14", "runs = 4")  # fmt: skip
+    path = write(tmp_path, text)
+    with Study(path, progress=False) as study:
+        study.run()
+    maps = json.loads((tmp_path / "report" / "results.json").read_text())["experiments"]["line"]
+    assert set(maps["maps"]) == {"jammed", "spread"}
+    assert maps["maps"]["jammed"]["kind"] == "binary"
+    assert maps["maps"]["spread"]["kind"] == "contour"
 
 
 def test_a_design_study_refuses_the_calibration_stages(tmp_path, capsys):

@@ -8,9 +8,10 @@ parameters) and a Latin hypercube over every parameter, and this report shows, f
   did not reach shown as "not reached" (a consignment that never left the belt has no exit
   time);
 * the screening tables and charts (:func:`~flexparcel.calibration.report.screening_section`);
-* a **map** per 0/1 outcome (e.g. ``jammed``): every run as a point over the two map axes
-  (``[maps] axes``), filled where the outcome is 1, open where 0, a cross where not reached, its
-  colour the third parameter;
+* a **map** per 0/1 outcome (``[maps] flags``, e.g. ``jammed``; default: every outcome whose
+  values are all 0 or 1): every run as a point over the two map axes (``[maps] axes``),
+  filled where the outcome is 1, open where 0, a cross where not reached, its colour the third
+  parameter;
 * a **contour** per other outcome (``[maps] contours``, default all): a Gaussian-process
   surrogate (:class:`~flexparcel.calibration.surrogates.GPRSurrogate`, kernel by k-fold CV over
   all runs that reached the outcome, no hold-out: a design study's runs are few) predicted on a
@@ -238,7 +239,9 @@ def write_design_report(study) -> Path:
         sc = study.store.get_result("screening", e)
         if sc:
             add(screening_section(figs, e, sc))
-        flags = binary_outcomes(runs, exp.outcomes)
+        flags = c.maps["flags"]
+        flags = binary_outcomes(runs, exp.outcomes) if flags is None else list(flags)
+        flags = [o for o in flags if o in exp.outcomes]
         wanted = c.maps["contours"]
         rest = [o for o in exp.outcomes if o not in flags and (wanted is None or o in wanted)]
         maps = {}

@@ -150,7 +150,8 @@ class StudyConfig:
     fidelity: Mapping[str, Mapping] | None = None
     #: ``calibration`` or ``design`` (:data:`PURPOSES`).
     purpose: str = "calibration"
-    #: A design study's maps: ``{"axes": (p1, p2), "contours": (outcome, ...) or None}``.
+    #: A design study's maps: ``{"axes": (p1, p2), "flags": (outcome, ...) or None,
+    #: "contours": (outcome, ...) or None}`` (None: chosen by the values, see design_report).
     maps: Mapping | None = None
 
     @property
@@ -463,23 +464,26 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
 
 def _parse_maps(path: Path, top: _Fields, space: ParameterSpace, experiments, purpose: str):
     """A design study's ``[maps]``: the two parameters its maps are drawn over (default the
-    first two) and the outcomes drawn as contours (default: every outcome that is not 0/1)."""
+    first two), the 0/1 outcomes drawn as maps of the runs (``flags``; default: those whose
+    every value is 0 or 1) and the outcomes drawn as contours (default: all others)."""
     if purpose != "design":
         if "maps" in top.data:
             top.fail("maps", "only a design study (purpose = 'design') draws maps")
         return None
-    m = _Fields(path, "maps", top.get("maps", "table", {}), ("axes", "contours"))
+    m = _Fields(path, "maps", top.get("maps", "table", {}), ("axes", "flags", "contours"))
     axes = m.str_list("axes", list(space.names[:2]))
     if len(axes) != 2 or len(set(axes)) != 2 or not all(a in space for a in axes):
         m.fail("axes", f"must name two different parameters of {', '.join(space.names)}; "
                        f"got {axes!r}")  # fmt: skip
-    contours = m.str_list("contours")
-    if contours is not None:
-        known = {o for e in experiments.values() for o in e.outcomes}
-        bad = [o for o in contours if o not in known]
+    known = {o for e in experiments.values() for o in e.outcomes}
+    lists = {}
+    for key in ("flags", "contours"):
+        names = m.str_list(key)
+        bad = [o for o in names or () if o not in known]
         if bad:
-            m.fail("contours", f"{bad[0]!r} is not an outcome of any experiment")
-    return {"axes": tuple(axes), "contours": None if contours is None else tuple(contours)}
+            m.fail(key, f"{bad[0]!r} is not an outcome of any experiment")
+        lists[key] = None if names is None else tuple(names)
+    return {"axes": tuple(axes), **lists}
 
 
 def _parse_fidelity(path: Path, top: _Fields, experiments) -> dict | None:
