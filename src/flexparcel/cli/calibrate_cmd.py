@@ -1,4 +1,6 @@
-"""``flexparcel calibrate STUDY.toml``: run a calibration study (all stages or some).
+"""``flexparcel calibrate STUDY.toml``: run a calibration study (all stages or some), or a
+design study (``purpose = "design"``: no targets; stages screen, design, report, with maps and
+contours of its outcomes).
 
 Stages: screen, design, fit, optimise, validate, report (see ``docs/calibration.md``). Every stage
 records its runs and results in the study store, so an interrupted command resumes where it
@@ -23,7 +25,8 @@ _STAGES = ("screen", "design", "fit", "optimise", "validate", "report")
 def register(subparsers) -> None:
     p = subparsers.add_parser(
         "calibrate",
-        help="parameterise a model: DoE, ANOVA screening, GPR surrogates, Nelder-Mead, validation",
+        help="parameterise a model (DoE, ANOVA screening, GPR surrogates, Nelder-Mead, "
+        "validation), or map a design space (purpose = 'design')",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
