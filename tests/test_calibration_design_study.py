@@ -110,6 +110,10 @@ def test_design_study_runs_screen_and_hypercube_and_maps_its_outcomes(tmp_path):
     lo, hi = spread["range"]
     assert spread["cv_rmse"] < 0.05 * (hi - lo)
     assert line["maps"]["exit_time"]["n_runs"] == 22 - jams
+    # drawn only where runs reached it: all of the plane for the spread, not the jam corner
+    # (slow belt, steep deflector) for the exit time
+    assert spread["drawn_fraction"] == 1.0
+    assert 0.5 < line["maps"]["exit_time"]["drawn_fraction"] < 1.0
     html = (tmp_path / "report" / "report.html").read_text()
     assert "Design study: sorter" in html and "not reached" in html
     for fig in ("map_line_jammed.png", "contour_line_spread.png", "contour_line_exit_time.png"):

@@ -15,7 +15,8 @@ parameters) and a Latin hypercube over every parameter, and this report shows, f
 * a **contour** per other outcome (``[maps] contours``, default all): a Gaussian-process
   surrogate (:class:`~flexparcel.calibration.surrogates.GPRSurrogate`, kernel by k-fold CV over
   all runs that reached the outcome, no hold-out: a design study's runs are few) predicted on a
-  grid over the two axes, the other parameters at their nominal values, with the runs on top.
+  grid over the two axes, the other parameters at their nominal values, with the runs on top;
+  only inside the convex hull of the runs that reached the outcome (no extrapolation).
   Its title gives the chosen kernel's out-of-fold RMSE, so a map drawn from too few runs says
   so. Fewer than 4 runs with the outcome: no contour, a note instead.
 
@@ -158,11 +159,13 @@ def _contour(figs, study, e: str, runs, o: str, axes) -> tuple[str, dict]:
     ui, uj = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
     U[:, i], U[:, j] = ui.ravel(), uj.ravel()
     G = space.from_unit(U)
+    Xr, _, _, labels = _axes_data(study, e, have, axes)
     m = gp.predict(G).reshape(n, n)
+    inside = _within_runs(Xr, G[:, [i, j]], space, (i, j)).reshape(n, n)
+    m = np.where(inside, m, np.nan)  # no colour where no run reached the outcome
     fig, ax = plt.subplots(figsize=(5.8, 4.4))
     cs = ax.contourf(G[:, i].reshape(n, n), G[:, j].reshape(n, n), m, levels=14, cmap="magma")
     fig.colorbar(cs, ax=ax, label=o)
-    Xr, _, _, labels = _axes_data(study, e, have, axes)
     ax.scatter(
         Xr[:, 0], Xr[:, 1], c=y, cmap="magma", norm=cs.norm, edgecolors="w", s=60, clip_on=False
     )
@@ -181,9 +184,31 @@ def _contour(figs, study, e: str, runs, o: str, axes) -> tuple[str, dict]:
                  f"{held or 'no other parameter'}", fontsize=8)  # fmt: skip
     fig.suptitle(f"{e}: {o} over {axes[0]} and {axes[1]}", fontsize=10)
     info = {"kind": "contour", "n_runs": len(have), "kernel": gp.kernel_name_,
-            "cv_folds": folds, "cv_rmse": cv_rmse, "range": [float(y.min()), float(y.max())],
+            "cv_folds": folds,
+            "drawn_fraction": float(inside.mean()), "cv_rmse": cv_rmse,
+            "range": [float(y.min()), float(y.max())],
             "held_at": {p: space[p].nominal_value for p in others}}  # fmt: skip
     return figs.add(fig, f"contour_{e}_{o}"), info
+
+
+def _within_runs(X_runs, X_grid, space, cols) -> np.ndarray:
+    """Which grid points (the two map axes) lie in the convex hull of the runs that reached the
+    outcome, in unit coordinates: the contour is drawn there only, so it does not extrapolate
+    into a corner where the outcome was never reached. All True if the runs span no area."""
+    from matplotlib.path import Path as PolyPath
+    from scipy.spatial import ConvexHull, QhullError
+
+    pars = [space.parameters[c] for c in cols]
+
+    def unit(X):
+        return np.column_stack([p.to_unit(X[:, k]) for k, p in enumerate(pars)])
+
+    U = unit(X_runs)
+    try:
+        hull = ConvexHull(U)
+    except (QhullError, ValueError):
+        return np.ones(len(X_grid), dtype=bool)
+    return PolyPath(U[hull.vertices]).contains_points(unit(X_grid), radius=1e-9)
 
 
 def _runs_table(runs: list[dict], params, outcomes) -> str:
