@@ -270,6 +270,45 @@ def test_node_forces_add_up_to_the_consignment_deflector_force(conveyor_dir):
     assert not node[-1, cm.consignments["b"].packaging].any()
 
 
+def test_deflector_force_is_the_models_own_contact_force(conveyor_dir):
+    """The recorded deflector force is what the model's node-face contact sets apply, in
+    newtons: the per-area law times each node's tributary area (a force computed as the bare
+    law was a pressure in Pa, 2,500 times the force of a 20 mm node)."""
+    from dataclasses import replace
+
+    from flexparcel.model.interfaces import ContactContext, ContactOutput
+    from flexparcel.model.model import State
+    from flexparcel.scenarios.conveyor_scene import deflector_normal_forces
+
+    _, _, result = conveyor_dir
+    cm, res = result.record.conveyor_model, result.simulation
+    c, g = cm.consignments["a"], cm.parts.deflectors[0]
+    h = c.contact_radius
+    pos = np.array(res.positions)
+    dist, on = g.over_face(pos[-1, c.packaging], below=h)
+    pos[-1, c.node_ids] -= (dist[on].min() - 0.5 * h) * np.asarray(g.normal)
+    vel = np.zeros_like(np.asarray(res.velocities))  # at rest: the spring term alone
+    pushed = replace(res, positions=pos, velocities=vel)
+    recorded = deflector_normal_forces(cm, pushed)["a"][-1]
+
+    m = cm.model
+    n = m.node_count
+    rot = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    state = State(float(res.time[-1]), pos[-1].copy(), rot, vel[-1].copy(), np.zeros((n, 6)))
+    ctx = ContactContext(model=m, laws=m.contact_laws,
+                         factors=np.array([sch(state.time) for sch in m.contact_schedules]),
+                         node_mass=np.full(n, np.inf), impact_speed=np.inf, start=state,
+                         step=1e-5, box_half=m.box_half_at(state.time))  # fmt: skip
+    out = ContactOutput(np.zeros((n, 6)))
+    for cs in m.contact_sets:
+        if cs.kind == "node_face":  # packaging on deflector faces (and on other packaging)
+            cs.prepare(ctx, state, 1e-5)
+            cs.evaluate(ctx, state, out)
+    applied = float(out.forces[c.packaging, :3].sum(axis=0) @ np.asarray(g.normal))
+    assert applied > 0.1  # some newtons, a film pressed 0.5 h into the sheet
+    assert recorded == pytest.approx(applied, rel=1e-9)
+
+
 def test_viewer_opens_conveyor_results_written_without_parts(conveyor_dir, tmp_path):
     # results.npz of a run from before the parts were recorded: the consignments come from
     # the node lists of its metadata, the other nodes' cells are the deflectors

@@ -211,6 +211,18 @@ def _within_runs(X_runs, X_grid, space, cols) -> np.ndarray:
     return PolyPath(U[hull.vertices]).contains_points(unit(X_grid), radius=1e-9)
 
 
+def _outcomes_only(sc: dict | None, outcomes) -> dict | None:
+    """The screening result restricted to the study's current outcomes (an outcome taken out
+    of the study file after its screen is not shown)."""
+    if not sc:
+        return sc
+    keep = set(outcomes)
+    out = dict(sc)
+    for key in ("anova", "responses", "not_analysed"):
+        out[key] = {k: v for k, v in (sc.get(key) or {}).items() if k in keep}
+    return out
+
+
 def _runs_table(runs: list[dict], params, outcomes) -> str:
     rows = [
         [k + 1, r["stage"], *(r["params"][p] for p in params)]
@@ -261,7 +273,7 @@ def write_design_report(study) -> Path:
             f"runs, {wall:.0f} s of simulation in all</p>")  # fmt: skip
         add("<h3>Runs</h3>")
         add(_runs_table(runs, list(exp.parameters), list(exp.outcomes)))
-        sc = study.store.get_result("screening", e)
+        sc = _outcomes_only(study.store.get_result("screening", e), exp.outcomes)
         if sc:
             add(screening_section(figs, e, sc))
         flags = c.maps["flags"]

@@ -366,26 +366,13 @@ def _group_responses(responses: Mapping[str, Any]) -> dict[str, Response]:
 
 def _deflector_node_forces(cm: Any, res: Any) -> np.ndarray:
     """Deflector normal force on each packaging node at the recorded frames [N], shape
-    (k, n, 3): the law of
-    :func:`~flexparcel.scenarios.conveyor_scene.deflector_normal_forces` (which sums it per
-    consignment) per node, along each deflector's upstream normal."""
-    from flexparcel.contact.law import normal_force_packed
+    (k, n, 3): :func:`~flexparcel.scenarios.conveyor_scene.deflector_node_forces` along each
+    deflector's upstream normal."""
+    from flexparcel.scenarios.conveyor_scene import deflector_node_forces
 
-    pos = np.asarray(res.positions)
-    out = np.zeros(pos.shape)
-    for name, c in cm.consignments.items():
-        law = cm.laws[name]["deflector"].packed()
-        h = c.contact_radius
-        p = pos[:, c.packaging]
-        v = np.asarray(res.velocities)[:, c.packaging, :3]
-        for g in cm.parts.deflectors:
-            dist, on = g.over_face(p, below=h)
-            s = h - dist
-            on &= (s > 0.0) & (dist > -0.5 * cm.parts.scene.deflector_thickness)
-            rate = -(v @ g.normal)
-            for k, i in zip(*np.nonzero(on), strict=True):
-                f = normal_force_packed(float(s[k, i]), float(rate[k, i]), law)[0]
-                out[k, c.packaging[i]] += f * np.asarray(g.normal)
+    out = np.zeros(np.shape(res.positions))
+    for g in cm.parts.deflectors:
+        out += deflector_node_forces(cm, res, [g])[:, :, None] * np.asarray(g.normal)
     return out
 
 
