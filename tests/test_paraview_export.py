@@ -246,13 +246,11 @@ def test_viewer_of_the_conveyor_shows_belt_deflectors_and_forces(conveyor_dir, t
     assert '<option value="contact_force">' in text and "Conveyor, 4 consignments" in text
 
 
-def test_node_forces_add_up_to_the_consignment_deflector_force(conveyor_dir):
-    # the short run has not reached the deflectors yet: push consignment a's last frame into
-    # deflector 0 and compare the per-node forces with the per-consignment responses' law
+def _pushed_into_deflector(conveyor_dir, at_rest: bool = False):
+    """The conveyor run with consignment a's last frame moved 0.5 h into deflector 0's face
+    (h: half its packaging thickness), its velocities zeroed if ``at_rest``: (conveyor model,
+    a, deflector 0, the changed result)."""
     from dataclasses import replace
-
-    from flexparcel.scenarios.conveyor_scenario import _deflector_node_forces
-    from flexparcel.scenarios.conveyor_scene import deflector_normal_forces
 
     _, _, result = conveyor_dir
     cm, res = result.record.conveyor_model, result.simulation
@@ -262,7 +260,19 @@ def test_node_forces_add_up_to_the_consignment_deflector_force(conveyor_dir):
     dist, on = g.over_face(pos[-1, c.packaging], below=h)
     assert on.any()
     pos[-1, c.node_ids] -= (dist[on].min() - 0.5 * h) * np.asarray(g.normal)
-    pushed = replace(res, positions=pos)
+    vel = np.array(res.velocities)
+    if at_rest:
+        vel[:] = 0.0
+    return cm, c, g, replace(res, positions=pos, velocities=vel)
+
+
+def test_node_forces_add_up_to_the_consignment_deflector_force(conveyor_dir):
+    # the short run has not reached the deflectors yet: push consignment a's last frame into
+    # deflector 0 and compare the per-node forces with the per-consignment responses' law
+    from flexparcel.scenarios.conveyor_scenario import _deflector_node_forces
+    from flexparcel.scenarios.conveyor_scene import deflector_normal_forces
+
+    cm, c, g, pushed = _pushed_into_deflector(conveyor_dir)
     node = _deflector_node_forces(cm, pushed)
     total = deflector_normal_forces(cm, pushed)
     assert total["a"][-1] > 0.0 and np.all(total["a"][:-1] == 0.0)
@@ -274,27 +284,18 @@ def test_deflector_force_is_the_models_own_contact_force(conveyor_dir):
     """The recorded deflector force is what the model's node-face contact sets apply, in
     newtons: the per-area law times each node's tributary area (a force computed as the bare
     law was a pressure in Pa, 2,500 times the force of a 20 mm node)."""
-    from dataclasses import replace
-
     from flexparcel.model.interfaces import ContactContext, ContactOutput
     from flexparcel.model.model import State
     from flexparcel.scenarios.conveyor_scene import deflector_normal_forces
 
-    _, _, result = conveyor_dir
-    cm, res = result.record.conveyor_model, result.simulation
-    c, g = cm.consignments["a"], cm.parts.deflectors[0]
-    h = c.contact_radius
-    pos = np.array(res.positions)
-    dist, on = g.over_face(pos[-1, c.packaging], below=h)
-    pos[-1, c.node_ids] -= (dist[on].min() - 0.5 * h) * np.asarray(g.normal)
-    vel = np.zeros_like(np.asarray(res.velocities))  # at rest: the spring term alone
-    pushed = replace(res, positions=pos, velocities=vel)
+    cm, c, g, pushed = _pushed_into_deflector(conveyor_dir, at_rest=True)  # the spring term
     recorded = deflector_normal_forces(cm, pushed)["a"][-1]
 
     m = cm.model
     n = m.node_count
     rot = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
-    state = State(float(res.time[-1]), pos[-1].copy(), rot, vel[-1].copy(), np.zeros((n, 6)))
+    state = State(float(pushed.time[-1]), pushed.positions[-1].copy(), rot,
+                  pushed.velocities[-1].copy(), np.zeros((n, 6)))  # fmt: skip
     ctx = ContactContext(model=m, laws=m.contact_laws,
                          factors=np.array([sch(state.time) for sch in m.contact_schedules]),
                          node_mass=np.full(n, np.inf), impact_speed=np.inf, start=state,
