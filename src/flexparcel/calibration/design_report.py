@@ -97,30 +97,20 @@ def _binary_map(figs, study, e: str, runs, o: str, axes) -> tuple[str, dict]:
     import matplotlib.pyplot as plt
 
     X, colour, third, labels = _axes_data(study, e, runs, axes)
+    v = np.array([r["outcomes"].get(o, np.nan) for r in runs], dtype=float)
+    one, zero, missing = v == 1.0, v == 0.0, np.isnan(v)
+    if colour is None:  # one parameter only: black rims
+        colour = np.zeros(len(runs))
+    norm = plt.Normalize(float(colour.min()), float(colour.max()))
+    rims = plt.cm.viridis(norm(colour))
     fig, ax = plt.subplots(figsize=(5.8, 4.4))
-    vmin = vmax = None
-    if colour is not None:
-        vmin, vmax = float(np.min(colour)), float(np.max(colour))
-    counts = {"1": 0, "0": 0, "not reached": 0}
-    sc = None
-    for k, r in enumerate(runs):
-        v = r["outcomes"].get(o)
-        c = None if colour is None else [colour[k]]
-        if v is None:
-            counts["not reached"] += 1
-            ax.scatter(X[k, 0], X[k, 1], marker="x", s=60, color="0.4")
-        elif v == 1.0:
-            counts["1"] += 1
-            sc = ax.scatter(X[k, 0], X[k, 1], c=c, s=110, marker="o", cmap="viridis",
-                            vmin=vmin, vmax=vmax, edgecolors="k")  # fmt: skip
-        else:
-            counts["0"] += 1
-            ax.scatter(X[k, 0], X[k, 1], s=110, marker="o", facecolors="none",
-                       edgecolors="k" if c is None else plt.cm.viridis(
-                           (colour[k] - vmin) / ((vmax - vmin) or 1.0)), linewidths=2)  # fmt: skip
-    if colour is not None:
-        mappable = sc or plt.cm.ScalarMappable(cmap="viridis", norm=plt.Normalize(vmin, vmax))
-        fig.colorbar(mappable, ax=ax, label=third)
+    ax.scatter(X[one, 0], X[one, 1], c=rims[one], s=110, edgecolors="k")
+    ax.scatter(X[zero, 0], X[zero, 1], s=110, facecolors="none", edgecolors=rims[zero],
+               linewidths=2)  # fmt: skip
+    ax.scatter(X[missing, 0], X[missing, 1], marker="x", s=60, color="0.4")
+    if third is not None:
+        fig.colorbar(plt.cm.ScalarMappable(cmap="viridis", norm=norm), ax=ax, label=third)
+    counts = {"1": int(one.sum()), "0": int(zero.sum()), "not reached": int(missing.sum())}
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
     ax.set_title(f"{o}: filled = 1 ({counts['1']}), open = 0 ({counts['0']}), "

@@ -912,6 +912,7 @@ class Study:
                     "then rerun with --retry-failed)"
                 )
             responses, skipped = self._screened_responses(exp, rows)
+            design = self.config.purpose == "design"
             sc = exp.screening
             try:
                 significant, fitted = screen_responses(
@@ -933,12 +934,13 @@ class Study:
                 "responses": {r: v.tolist() for r, v in responses.items()},
                 "anova": {r: s.to_dict() for r, s in fitted.items()},
                 "significant": significant,
-                "frozen": {p: sub[p].nominal_value for p in exp.parameters if p not in significant},
+                # a design study's hypercube varies every parameter: it freezes none
+                "frozen": {}
+                if design
+                else {p: sub[p].nominal_value for p in exp.parameters if p not in significant},
                 "not_analysed": skipped,
             }
-            if self.config.purpose == "design":
-                result["frozen"] = {}  # a design study's hypercube varies every parameter
-            elif not significant:
+            if not (design or significant):
                 raise RuntimeError(
                     f"screening of '{exp.name}' found no significant parameter at alpha = "
                     f"{sc.alpha}; nothing to calibrate against its targets"

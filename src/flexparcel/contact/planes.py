@@ -212,7 +212,7 @@ def plane_contact_forces(
                                plane_extent[pl], n_buf, curv)  # fmt: skip
         if s <= 0.0:
             continue
-        n = n_buf.copy()
+        n = n_buf  # read only below; the next point's _gap_into overwrites it
         n_contact += 1
         if s > deepest:
             deepest = s

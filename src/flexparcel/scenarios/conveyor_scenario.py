@@ -370,10 +370,8 @@ def _deflector_node_forces(cm: Any, res: Any) -> np.ndarray:
     deflector's upstream normal."""
     from flexparcel.scenarios.conveyor_scene import deflector_node_forces
 
-    out = np.zeros(np.shape(res.positions))
-    for g in cm.parts.deflectors:
-        out += deflector_node_forces(cm, res, [g])[:, :, None] * np.asarray(g.normal)
-    return out
+    normals = np.array([g.normal for g in cm.parts.deflectors], dtype=float).reshape(-1, 3)
+    return np.einsum("dkn,dj->knj", deflector_node_forces(cm, res), normals)
 
 
 def _save_contact_forces(path: Path, time: Any, force: np.ndarray) -> Path:

@@ -729,32 +729,30 @@ def build_conveyor_model(
     return ConveyorModel(model, state, layout, parts, cons, laws, pairs)
 
 
-def deflector_node_forces(
-    cm: ConveyorModel, result: SimulationResult, deflectors=None
-) -> np.ndarray:
-    """Normal force [N] of the deflectors (``deflectors``: some of ``cm.parts.deflectors``,
-    default all) on every node at the recorded frames, shape (k, n):
-    recomputed from the recorded positions and velocities with each consignment's deflector
-    law, per packaging node over a face rectangle: penetration s = h - distance to the face
-    plane (h = half the packaging thickness), rate s' = -v . normal, pressure
-    p = max(c s^m_s + damping, R_df c s^m_s) [N/m^2] (paper eqs. 1-6, per unit area) times
-    the node's tributary area (:func:`flexparcel.contact.tributary.node_areas` on the
-    reference geometry, as the contact sets take it). Nodes behind the sheet's mid-plane (half
+def deflector_node_forces(cm: ConveyorModel, result: SimulationResult) -> np.ndarray:
+    """Normal force [N] of each deflector on every node at the recorded frames, shape
+    (deflectors, k, n): recomputed from the recorded positions and velocities with each
+    consignment's deflector law, per packaging node over a face rectangle: penetration
+    s = h - distance to the face plane (h = half the packaging thickness), rate s' = -v . normal,
+    pressure p = max(c s^m_s + damping, R_df c s^m_s) [N/m^2] (paper eqs. 1-6, per unit area)
+    times the node's tributary area, read from the model's node-face contact sets (the area
+    they multiply the law by). Nodes behind the sheet's mid-plane (half
     ``deflector_thickness`` behind the face) or off the rectangle do not count. Peaks between
     frames are missed: it samples the force every output interval."""
     from flexparcel.contact.law import normal_force_packed
-    from flexparcel.contact.tributary import node_areas
 
-    m = cm.model
-    area = node_areas(m.positions0, [c for kind, c in m.cells if kind in ("quad", "triangle")],
-                      m.node_count)  # fmt: skip
+    area = np.zeros(cm.model.node_count)
+    for cs in cm.model.contact_sets:
+        if cs.kind == "node_face":  # packaging on the deflector faces carries every node's area
+            area[cs.node] = cs.area
     pos, vel = np.asarray(result.positions), np.asarray(result.velocities)
-    out = np.zeros(pos.shape[:2])
+    deflectors = cm.parts.deflectors
+    out = np.zeros((len(deflectors), *pos.shape[:2]))
     for name, c in cm.consignments.items():
         law = cm.laws[name]["deflector"].packed()
         h = c.contact_radius
         p, v = pos[:, c.packaging], vel[:, c.packaging, :3]
-        for g in cm.parts.deflectors if deflectors is None else deflectors:
+        for d, g in enumerate(deflectors):
             dist, on = g.over_face(p, below=h)
             s = h - dist
             on &= (s > 0.0) & (dist > -0.5 * cm.parts.scene.deflector_thickness)  # upstream
@@ -762,15 +760,15 @@ def deflector_node_forces(
             for k, i in zip(*np.nonzero(on), strict=True):
                 node = c.packaging[i]
                 f = normal_force_packed(float(s[k, i]), float(rate[k, i]), law)[0]
-                out[k, node] += f * area[node]
+                out[d, k, node] = f * area[node]
     return out
 
 
 def deflector_normal_forces(cm: ConveyorModel, result: SimulationResult) -> dict[str, np.ndarray]:
     """Normal force [N] of all deflectors on each consignment at the recorded frames,
-    placement name -> shape (k,): the sum of :func:`deflector_node_forces` over its packaging
-    nodes."""
-    per_node = deflector_node_forces(cm, result)
+    placement name -> shape (k,): :func:`deflector_node_forces` summed over the deflectors
+    and the consignment's packaging nodes."""
+    per_node = deflector_node_forces(cm, result).sum(axis=0)
     return {name: per_node[:, c.packaging].sum(axis=1) for name, c in cm.consignments.items()}
 
 
