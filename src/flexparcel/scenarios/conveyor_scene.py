@@ -65,6 +65,7 @@ from flexparcel.consignments.snapshot import Snapshot, place_snapshot
 from flexparcel.contact.geometry import segment_segment
 from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
+from flexparcel.integrate.linear import cholmod_available
 from flexparcel.io.tomlfile import read_toml
 from flexparcel.model.checks import finite_number
 from flexparcel.model.mesh import shell_edges
@@ -989,29 +990,30 @@ def conveyor_options() -> IntegratorOptions:
     (372 steps, 1,670 iterations) against 224 s (811 steps, 1,559 iterations) without; it was
     24 % slower on KP/BW, KP and BW alone, so it stays off.
 
-    The Newton matrix of a scene falls apart into one block per consignment (and per group of
-    touching ones), factorised in parallel (``linear_solver="superlu-blocks"``): first 0.01 s
-    of the four on 2 cores 90.7 s against 104.9 s (factorisation 66 s against 81 s; PB's
-    block alone takes most of it), in single precision refined to a double-precision solution
-    (``"superlu-blocks-mixed"``): first 0.01 s of the four (PB with its two-way content
-    contact, content 64.9 N/mm) 27.0 s against 28.9 s in double, factorisation 16.5 s against
-    20.0 s, the same steps, Newton iterations and centroids. The stick tangent for slipping
-    contacts (``friction_tangent="stick"``) is not used: it halved the first 0.01 s (55 s) but
-    took 776 s against 703 s over the first 0.05 s (839 steps of 6.5 Newton iterations
-    against 2,098 of 2.2), its linear convergence using up the Newton tolerance (BW's centroid
-    0.7 mm apart at 0.05 s).
-
-    Open choice: CHOLMOD (``linear_solver="auto"`` with the ``fast`` extra, one supernodal
-    factorisation of the whole scene) was faster on the four at 25 mm with Table 6's content
-    contact from the shipped snapshots, first 0.02 s beside another run: 415 s (991 steps,
-    2,853 iterations) against 596 s (1,022 steps, 2,936 iterations). As the default it made
-    the conveyor tests' short runs slower (the whole suite 960 s), so the block SuperLU
-    stays the default until both are measured on the whole 2 s scene."""
+    Linear solver: CHOLMOD (:class:`~flexparcel.integrate.linear.CholmodSolver`, the
+    ``fast`` extra that ``make`` installs) where cvxopt is installed, its symbolic analysis
+    held across the Newton matrices of one sparsity pattern; else SuperLU per block of the
+    matrix (one per consignment or group of touching ones) in single precision refined to a
+    double-precision solution (``"superlu-blocks-mixed"``). Measured on each paper consignment
+    alone on the belt at 25 mm from its shipped snapshot, Table 6 content contact, first
+    0.01 s, one model (``flexparcel bench conveyor --conveyor-consignments PB --t-end 0.01
+    --workers 0``, and the same with ``linear_solver`` set): PB 52 s
+    against 100 s (factorisation 20.5 s against 66.1 s; its 3,030-DOF block with the hex
+    content fills to 1.16 million LU entries), KP 32 s against 46 s, BW 18 s against 25 s;
+    the same steps within 7 %, the centroids within 0.3 um. PB, the slowest consignment, sets
+    the pace of a grouped run. The conveyor tests (tests/test_conveyor*.py) took 140 s
+    against 189 s. The stick tangent for slipping contacts (``friction_tangent="stick"``) is
+    not used: it halved the first 0.01 s of the four (SuperLU) but took 776 s against 703 s
+    over the first 0.05 s (839 steps of 6.5 Newton iterations against 2,098 of 2.2), its
+    linear convergence using up the Newton tolerance (BW's centroid 0.7 mm apart at
+    0.05 s). Reusing the last factorisation as a GMRES preconditioner (``krylov_reuse``)
+    does not pay: on PB it refactorised at 1,594 of 1,606 Newton iterations, the contact set
+    changing between them."""
     return replace(
         consignment_options(),
         newton_relaxation=False,
         newton_cap_growth=1.02,
-        linear_solver="superlu-blocks-mixed",
+        linear_solver="cholmod" if cholmod_available() else "superlu-blocks-mixed",
     )
 
 
