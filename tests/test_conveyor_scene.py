@@ -625,6 +625,12 @@ def test_conveyor_cli_rejects_bad_input_before_running(tmp_path, capsys):
     assert "--content-stiffness must be in [1, 10000] N/mm, got 20000" in _error(
         capsys, ["bench", "conveyor", "--content-stiffness", "2e4", *out]
     )
+    assert "--stick-stiffness must be in [0.01, 10000] N/mm, got 0" in _error(
+        capsys, ["run", "conveyor", "--stick-stiffness", "0", *out]
+    )
+    assert "--stick-stiffness must be in [0.01, 10000] N/mm, got 20000" in _error(
+        capsys, ["bench", "conveyor", "--stick-stiffness", "2e4", *out]
+    )
     assert "--sizes must be in [1, 100] mm, got '0.5,10'" in _error(
         capsys, ["bench", "kpbw-convergence", "--sizes", "0.5,10", *out]
     )
@@ -648,3 +654,23 @@ def test_conveyor_cli_rejects_bad_input_before_running(tmp_path, capsys):
     assert "the queue needs 1.3" in _error(capsys, ["run", "conveyor", "--scene", str(short),
                                                     *out])  # fmt: skip
     assert not (tmp_path / "o" / "snapshots").exists()
+
+
+def test_content_law_takes_the_stiffness_and_the_stick_stiffness_per_10_mm_node():
+    # per point of the paper's 10 mm nodes: the per-area law gets the value / (10 mm)^2
+    from flexparcel.consignments.build import default_packaging_content_law
+    from flexparcel.scenarios.conveyor_scenario import content_law_for
+
+    table6 = default_packaging_content_law()
+    assert content_law_for(None) is None
+    assert table6.stick_stiffness == table6.stiffness == pytest.approx(6.49e9)
+    soft = content_law_for(64.9)
+    assert soft.stiffness == soft.stick_stiffness == pytest.approx(6.49e8)
+    # k_t alone: c stays Table 6's, and only the tangential spring changes
+    kt = content_law_for(None, stick_n_per_mm=6.49)
+    assert kt.stiffness == pytest.approx(6.49e9) and kt.stick_stiffness == pytest.approx(6.49e7)
+    assert kt.damping == table6.damping and kt.mu_static == table6.mu_static
+    both = content_law_for(100.0, stick_n_per_mm=1.0)
+    assert both.stiffness == pytest.approx(1e9) and both.stick_stiffness == pytest.approx(1e7)
+    with pytest.raises(ValueError, match=r"stick_stiffness must be in \[0.01, 10000\] N/mm"):
+        content_law_for(None, stick_n_per_mm=0.001)

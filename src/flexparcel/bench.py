@@ -188,6 +188,7 @@ def _conveyor(
     start_speed: float = 0.0,
     content_stiffness_n_per_mm: float | None = None,
     workers: int = 2,
+    stick_stiffness_n_per_mm: float | None = None,
 ) -> dict:
     """The paper's bulk scene (:func:`~flexparcel.scenarios.conveyor_scene.default_layout`
     on :func:`~flexparcel.scenarios.conveyor_scene.paper_conveyor`, 1.6 m/s, 45 deg) for
@@ -197,7 +198,8 @@ def _conveyor(
     trajectories, ParaView) to ``work/run``, so the benchmarked run is the one people look
     at; the files' time is not in ``wall_s``. ``content_stiffness_n_per_mm``: the
     packaging-content contact (the conveyor scenario's ``content_stiffness``; None: Table
-    6's). ``workers``: as ``run conveyor --workers`` (0: one model). Run through the
+    6's); ``stick_stiffness_n_per_mm``: its stick-model stiffness (``stick_stiffness``;
+    None: k_t = c). ``workers``: as ``run conveyor --workers`` (0: one model). Run through the
     scenario registry's ``conveyor``."""
     from flexparcel.cli.progress import ProgressLine
     from flexparcel.io.checkpoint import CheckpointError, load_checkpoint
@@ -212,7 +214,8 @@ def _conveyor(
     scenario = get_scenario("conveyor", workers=workers, checkpoint=ckpt)
     # bad values fail before any assembly
     params = scenario.resolve({"start_speed": start_speed,
-                               "content_stiffness": content_stiffness_n_per_mm})  # fmt: skip
+                               "content_stiffness": content_stiffness_n_per_mm,
+                               "stick_stiffness": stick_stiffness_n_per_mm})  # fmt: skip
     snaps, assembly_wall = _conveyor_snapshots(consignments, element_size_mm, snapshot_dir,
                                                Path(work))  # fmt: skip
     shown = progress is not None and getattr(progress, "enabled", True)
@@ -241,6 +244,7 @@ def _conveyor(
         "element_size_mm": {k: s.build.element_size * 1e3 for k, s in snaps.items()},
         "start_speed_m_s": start_speed,
         "content_stiffness_N_per_mm": content_stiffness_n_per_mm,
+        "stick_stiffness_N_per_mm": stick_stiffness_n_per_mm,
         "simulated_s": t_end,
         "wall_s": run.wall_s,
         "resumed_from_checkpoint": resumed,

@@ -66,6 +66,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "Table 6's 649), as in 'run conveyor'",
     )
     g.add_argument(
+        "--stick-stiffness",
+        type=float,
+        default=None,
+        metavar="N_PER_MM",
+        help="conveyor: packaging-content stick-model stiffness k_t [N/mm] in [0.01, 10000] "
+        "(default: k_t = c); changes the physics, as in 'run conveyor'",
+    )
+    g.add_argument(
         "--snapshot-dir",
         type=Path,
         default=None,
@@ -128,7 +136,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--element-size must be in [1, 100] mm, got {args.element_size:g}")
     from flexparcel.scenarios.conveyor_scenario import content_law_for, group_settings
 
-    content_law_for(args.content_stiffness, "--content-stiffness")  # before any run
+    content_law_for(args.content_stiffness, "--content-stiffness",
+                    stick_n_per_mm=args.stick_stiffness,
+                    stick_label="--stick-stiffness")  # before any run  # fmt: skip
     group_settings(args.workers, "--workers")
     work = Path(args.out).parent / "bench-conveyor"
     common = {"t_end": args.t_end, "snapshot_dir": args.snapshot_dir, "work": work,
@@ -140,6 +150,7 @@ def run(args: argparse.Namespace) -> int:
             "element_size_mm": 25.0 if args.element_size is None else args.element_size,
             "start_speed": args.start_speed,
             "content_stiffness_n_per_mm": args.content_stiffness,
+            "stick_stiffness_n_per_mm": args.stick_stiffness,
         },
         "consignment-assembly": {"element_size_mm": args.element_size},
         "kpbw-tests": {"element_size_mm": args.element_size, "snapshot_dir": args.snapshot_dir},

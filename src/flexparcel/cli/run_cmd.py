@@ -19,11 +19,12 @@ SCENARIOS = (*TESTS, "conveyor")
 _CONVEYOR_FLAGS = {"belt_speed": "--belt-speed", "deflector_angle": "--deflector-angle",
                    "start_speed": "--start-speed", "pair_reach": "--pair-reach",
                    "content_stiffness": "--content-stiffness",
+                   "stick_stiffness": "--stick-stiffness",
                    "deflector_friction": "--deflector-friction"}  # fmt: skip
 """Conveyor scenario parameter -> the option that sets it."""
 _CONVEYOR_ONLY = ("consignments", "belt_speed", "deflector_angle", "scene", "snapshot_dir",
                   "pair_reach", "start_speed", "preview", "content_stiffness",
-                  "deflector_friction", "workers")  # fmt: skip
+                  "stick_stiffness", "deflector_friction", "workers")  # fmt: skip
 _TEST_ONLY = ("consignment", "snapshot", "assignments")
 
 
@@ -145,6 +146,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="conveyor: packaging-content contact stiffness c [N/mm] (and stick stiffness "
         "k_t = c) of every consignment (default: Table 6's 649, as assembled); softer is "
         "faster and lets the film settle deeper on its content",
+    )
+    g.add_argument(
+        "--stick-stiffness",
+        type=float,
+        default=None,
+        metavar="N_PER_MM",
+        help="conveyor: stick-model stiffness k_t [N/mm] of every consignment's "
+        "packaging-content friction, in [0.01, 10000] (default: k_t = c, the contact "
+        "stiffness). This changes the physics: the content pre-slides mu_s F_N / k_t in its "
+        "packaging before it slips; 6.49 (k_t = c / 100) let the steps grow ten-fold "
+        "(docs/scenarios.md, 'Stick stiffness')",
     )
     g.add_argument(
         "--deflector-friction",

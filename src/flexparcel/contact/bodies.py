@@ -313,7 +313,7 @@ class NodeBoxSet(AnchoredHistory, ContactSet):
         self.box = int(box)
         """The rigid body's node."""
         self.radius = float(radius)
-        self.area = np.ascontiguousarray(np.broadcast_to(areas, self.node.shape), dtype=float)
+        self.area = np.array(np.broadcast_to(areas, self.node.shape), dtype=float)
         """Tributary area of each node [m^2], shape (Q,)."""
         # the kernel's per-pair box, radius and law rows; constant, so built once
         self._box_of = np.full(self.node.size, self.box, dtype=np.int64)
@@ -356,7 +356,7 @@ class EdgeBoxSet(ContactSet):
     ) -> None:
         super().__init__(law, schedule)
         self.edges = np.ascontiguousarray(edges, dtype=np.int64)
-        self.station_area = np.ascontiguousarray(
+        self.station_area = np.array(
             np.broadcast_to(station_areas, self.edges.shape[:1]), dtype=float
         )
         self.box = int(box)

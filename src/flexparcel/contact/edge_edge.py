@@ -173,9 +173,7 @@ class EdgeEdgeSet(ContactSet):
         super().__init__(law, schedule)
         self.edges_a = np.ascontiguousarray(edges_a, dtype=np.int64)
         self.edges_b = np.ascontiguousarray(edges_b, dtype=np.int64)
-        self.area_b = np.ascontiguousarray(
-            np.broadcast_to(areas_b, self.edges_b.shape[:1]), dtype=float
-        )
+        self.area_b = np.array(np.broadcast_to(areas_b, self.edges_b.shape[:1]), dtype=float)
         self.thickness = float(thickness)
         self.candidates = (np.zeros((0, 2), np.int64), np.zeros((0, 3)))
 

@@ -107,7 +107,7 @@ class EdgePlaneSet(ContactSet):
     ) -> None:
         super().__init__(law, schedule)
         self.edges = np.ascontiguousarray(edges, dtype=np.int64)
-        self.station_area = np.ascontiguousarray(
+        self.station_area = np.array(
             np.broadcast_to(station_areas, self.edges.shape[:1]), dtype=float
         )
         self.plane = int(plane)

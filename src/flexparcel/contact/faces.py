@@ -405,7 +405,7 @@ class NodeFaceSet(AnchoredHistory, ContactSet):
         self.triangles = np.ascontiguousarray(triangles, dtype=np.int64)
         """Master faces, shape (M, 3)."""
         self.thickness = float(thickness)
-        self.area = np.ascontiguousarray(np.broadcast_to(areas, self.node.shape), dtype=float)
+        self.area = np.array(np.broadcast_to(areas, self.node.shape), dtype=float)
         """Tributary area of each slave node [m^2], shape (N,)."""
         self.anchors = StickAnchors(self.node.size)
         self.candidates = (np.zeros((0, 2), np.int64), np.zeros(0))
@@ -451,7 +451,7 @@ class EdgeFaceSet(ContactSet):
     ) -> None:
         super().__init__(law, schedule)
         self.edges = np.ascontiguousarray(edges, dtype=np.int64)
-        self.station_area = np.ascontiguousarray(
+        self.station_area = np.array(
             np.broadcast_to(station_areas, self.edges.shape[:1]), dtype=float
         )
         self.triangles = np.ascontiguousarray(triangles, dtype=np.int64)

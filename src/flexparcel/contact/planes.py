@@ -320,7 +320,7 @@ class PlanePointSet(ContactSet):
         self.radius = np.ascontiguousarray(radii, dtype=float)
         """Radius of each point [m], shape (P,)."""
         self.plane = int(plane)
-        self.area = np.ascontiguousarray(np.broadcast_to(areas, self.node.shape), dtype=float)
+        self.area = np.array(np.broadcast_to(areas, self.node.shape), dtype=float)
         """Tributary area of each point [m^2], shape (P,)."""
         # the kernel's per-point plane and law rows; constant, so built once, not per call
         self._plane_of = np.full(self.node.size, self.plane, dtype=np.int64)

@@ -72,6 +72,10 @@ CONVEYOR_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("deflector_friction", "-", None, 0.0, 2.0,
               "friction coefficient (static = dynamic) of every consignment's packaging on "
               "the deflectors (default: the friction table's, by packaging surface)"),
+    Parameter("stick_stiffness", "N/mm", None, 0.01, 1e4,
+              "stick-model stiffness k_t of every consignment's packaging-content contact "
+              "(default: k_t = c, the contact stiffness); softer lets the time steps grow, "
+              "and the content pre-slides mu_s F_N / k_t before it slips (docs/scenarios.md)"),
 )  # fmt: skip
 WORKERS = Parameter("workers", "", 2, 0, 64, "worker processes (0: the scene as one model)",
                     integer=True)  # fmt: skip
@@ -79,18 +83,34 @@ WORKERS = Parameter("workers", "", 2, 0, 64, "worker processes (0: the scene as 
 on that many processes (the default 2: the CI-class machine's two cores)."""
 
 
-def content_law_for(stiffness_n_per_mm: float | None, label: str = "content_stiffness"):
+def content_law_for(
+    stiffness_n_per_mm: float | None,
+    label: str = "content_stiffness",
+    *,
+    stick_n_per_mm: float | None = None,
+    stick_label: str = "stick_stiffness",
+):
     """The packaging-content contact law with stiffness c = ``stiffness_n_per_mm`` [N/mm] in
-    [1, 1e4] (stick stiffness k_t = c, damping kept), or None (Table 6's law, as assembled)
-    when not given. ``label`` names the value in the error. Like Table 6's 649, the value is
-    per point of the paper's 10 mm nodes: the per-area law gets c / (10 mm)^2 [N/m^3]."""
-    if stiffness_n_per_mm is None:
-        return None
-    from flexparcel.consignments.build import default_packaging_content_law
+    [1, 1e4] (default Table 6's 649) and stick stiffness k_t = ``stick_n_per_mm`` [N/mm] in
+    [0.01, 1e4] (default k_t = c), damping kept; None (Table 6's law, as assembled) when
+    neither is given. ``label`` and ``stick_label`` name the values in the errors. Like
+    Table 6's 649, the values are per point of the paper's 10 mm nodes: the per-area law gets
+    them divided by (10 mm)^2 [N/m^3]."""
     from flexparcel.contact.law import REFERENCE_AREA
 
-    c = CONVEYOR_PARAMETERS[3].check(stiffness_n_per_mm, label) * 1e3 / REFERENCE_AREA
-    return replace(default_packaging_content_law(), stiffness=c, stick_stiffness=c)
+    (c_param, kt_param) = (q for q in CONVEYOR_PARAMETERS
+                           if q.name in ("content_stiffness", "stick_stiffness"))  # fmt: skip
+    c = None if stiffness_n_per_mm is None else c_param.check(stiffness_n_per_mm, label)
+    kt = None if stick_n_per_mm is None else kt_param.check(stick_n_per_mm, stick_label)
+    if c is None and kt is None:
+        return None
+    from flexparcel.consignments.build import default_packaging_content_law
+
+    law = default_packaging_content_law()
+    if c is not None:
+        law = replace(law, stiffness=c * 1e3 / REFERENCE_AREA)
+    per_area = law.stiffness if kt is None else kt * 1e3 / REFERENCE_AREA
+    return replace(law, stick_stiffness=per_area)
 
 
 def deflector_friction_table(mu: float | None):
@@ -182,7 +202,8 @@ class ConveyorScenario(ScenarioBase):
         return layout
 
     def _content_law(self, p: Mapping[str, float | None]) -> ContactLaw | None:
-        return content_law_for(p.get("content_stiffness"))
+        return content_law_for(p.get("content_stiffness"),
+                               stick_n_per_mm=p.get("stick_stiffness"))  # fmt: skip
 
     def build(self, consignment: Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> ConveyorModel:  # fmt: skip
@@ -227,6 +248,7 @@ class ConveyorScenario(ScenarioBase):
             "jam_time_s": self.jam_time,
             "workers": self.workers,
             "content_stiffness_N_per_mm": p["content_stiffness"],
+            "stick_stiffness_N_per_mm": p.get("stick_stiffness"),
             "deflector_friction": p.get("deflector_friction"),
             "element_size_mm": {k: s.build.element_size * 1e3 for k, s in consignment.items()},
         }

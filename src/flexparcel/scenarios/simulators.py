@@ -201,6 +201,7 @@ CONVEYOR_UNITS = {
     "deflector_angle": "deg",
     "start_speed": "m/s",
     "content_stiffness": "N/mm",
+    "stick_stiffness": "N/mm",
     "pair_reach": "m",
     "deflector_friction": "-",
 }
