@@ -67,3 +67,16 @@ def test_convergence_case_resumes_from_its_finished_tests(tmp_path, monkeypatch)
     assert row.drop_horizontal__rebound_mm["table7"] == 4.5
     assert row.drop_horizontal__rebound_mm["real"] == 4.0
     assert r["wall_s"] == pytest.approx(12.0) and r["steps"] == 18
+
+
+def test_phases_other_is_measured_against_the_basis_of_the_phases():
+    # one process: the rest of its wall time; a grouped run sums the phases over its worker
+    # processes, so the rest is taken from the workers' busy time, never a negative number
+    from flexparcel.bench import _phases
+
+    phases = dict(elements=4.0, contact=1.0, matrix=1.0, factor=2.0, solve=1.0)
+    one = _phases({"wall_s": {**phases, "total": 10.0}})
+    assert one["other"] == pytest.approx(1.0) and one["elements"] == 4.0
+    grouped = {"wall_s": {**phases, "total": 6.0}, "groups": {"worker_busy_s": [5.0, 4.5]}}
+    assert _phases(grouped)["other"] == pytest.approx(0.5)
+    assert "other" not in _phases({"wall_s": phases})

@@ -38,12 +38,15 @@ def _solver_name() -> str:
 
 
 def _phases(stats: dict) -> dict:
-    """Wall time [s] per phase of the Newton iterations (WALL_PHASES), and the rest of the
-    run ("other": predictor, step control, recording) as measured against its total."""
+    """Wall time [s] per phase of the Newton iterations (WALL_PHASES), and the rest ("other":
+    predictor, step control, recording) as measured against the total: the run's wall time,
+    or for a grouped run (phases summed over its worker processes) the workers' busy time."""
     w = stats["wall_s"]
     phases = {k: float(w.get(k, 0.0)) for k in WALL_PHASES}
-    if "total" in w:
-        phases["other"] = float(w["total"]) - sum(phases.values())
+    busy = (stats.get("groups") or {}).get("worker_busy_s")
+    total = sum(busy) if busy else w.get("total")
+    if total is not None:
+        phases["other"] = float(total) - sum(phases.values())
     return phases
 
 
