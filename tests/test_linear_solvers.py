@@ -275,13 +275,20 @@ def test_cholmod_falls_back_to_superlu_where_the_matrix_is_not_positive_definite
     s = make_linear_solver("cholmod")
     s.factor(a)
     x = s.solve(b)
-    assert s.fallbacks == 1
+    assert s.fallbacks == 1 and s.symbolic_count == 2  # CHOLMOD's analysis, SuperLU's
     assert np.linalg.norm(a @ x - b) <= 1e-12 * np.linalg.norm(b)
-    # the next positive definite matrix is factorised by CHOLMOD again
+    # the next INDEFINITE_SKIP matrices go straight to SuperLU (the matrices of one step
+    # tend to stay indefinite), then a positive definite one is factorised by CHOLMOD again,
+    # on the analysis it held (that depends on the pattern only)
     a2 = _shell_like(seed=5)
+    for k in range(linear.INDEFINITE_SKIP):
+        s.factor(a2)
+        assert np.linalg.norm(a2 @ s.solve(b) - b) <= 1e-12 * np.linalg.norm(b)
+        assert s.fallbacks == 2 + k
     s.factor(a2)
     assert np.linalg.norm(a2 @ s.solve(b) - b) <= 1e-13 * np.linalg.norm(b)
-    assert s.fallbacks == 1
+    assert s.fallbacks == 1 + linear.INDEFINITE_SKIP
+    assert s.symbolic_count == 2 + linear.INDEFINITE_SKIP  # SuperLU's orderings only
 
 
 def test_cholmod_history_restores_the_held_pattern_and_refuses_a_malformed_one():
@@ -291,7 +298,8 @@ def test_cholmod_history_restores_the_held_pattern_and_refuses_a_malformed_one()
     s.factor(_shell_like(couple=[(3, 40)]))
     s.factor(_shell_like())  # within the held union: no new analysis
     hist = s.history()
-    assert set(hist) == {"pattern_indptr", "pattern_indices"}
+    assert set(hist) == {"pattern_indptr", "pattern_indices", "indefinite_left"}
+    assert int(hist["indefinite_left"][0]) == 0
     t = make_linear_solver("cholmod")
     t.restore_history(hist)
     a, b = _shell_like(seed=7), np.arange(60.0)
@@ -305,4 +313,24 @@ def test_cholmod_history_restores_the_held_pattern_and_refuses_a_malformed_one()
     }
     with pytest.raises(ValueError, match="held sparsity pattern is malformed"):
         t.restore_history(bad)
+    with pytest.raises(ValueError, match="indefinite_left is malformed"):
+        t.restore_history({**hist, "indefinite_left": np.array([-1])})
     assert make_linear_solver("superlu").history() == {}
+
+
+def test_cholmod_history_carries_the_superlu_run_after_an_indefinite_matrix():
+    # a solver restored mid-way through the SuperLU run after an indefinite matrix goes on
+    # exactly as the original: the same backend for the same matrices, the same solutions
+    ind = _shell_like().tolil()
+    ind[7, 7] = -50.0
+    s = make_linear_solver("cholmod")
+    s.factor(ind.tocsr())
+    a, b = _shell_like(seed=9), np.arange(60.0)
+    s.factor(a)  # one of the skipped ones
+    t = make_linear_solver("cholmod")
+    t.restore_history(s.history())
+    assert int(s.history()["indefinite_left"][0]) == linear.INDEFINITE_SKIP - 1
+    for solver in (s, t):
+        solver.factor(a)
+    np.testing.assert_array_equal(s.solve(b), t.solve(b))
+    assert t.fallbacks == 1  # SuperLU, as the original
