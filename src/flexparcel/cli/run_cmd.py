@@ -155,8 +155,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="conveyor: stick-model stiffness k_t [N/mm] of every consignment's "
         "packaging-content friction, in [0.01, 10000] (default: k_t = c, the contact "
         "stiffness). This changes the physics: the content pre-slides mu_s F_N / k_t in its "
-        "packaging before it slips; 6.49 (k_t = c / 100) let the steps grow ten-fold "
-        "(docs/scenarios.md, 'Stick stiffness')",
+        "packaging before it slips; 6.49 (k_t = c / 100) took a quarter of the steps on "
+        "the paper's four at 25 mm (docs/scenarios.md, 'Stick stiffness')",
     )
     g.add_argument(
         "--deflector-friction",
