@@ -98,27 +98,22 @@ SMALL_CONSIGNMENT = Path(__file__).resolve().parents[1] / "examples" / "consignm
 
 
 @pytest.fixture(scope="session")
-def small_assembly(tmp_path_factory) -> Path:
-    """``flexparcel assemble`` of the small example consignment (20 mm shells), run once per
-    session (about a minute): the directory with snapshot.npz, assembly.json, pictures."""
+def snapshot_dir(tmp_path_factory) -> Path:
+    """DIR/consignment_small/: ``flexparcel assemble`` of the small example consignment
+    (examples/consignment_small.toml, 20 mm shells), run once per session: snapshot.npz,
+    assembly.json, pictures. Read it; a test that writes copies it first."""
     from flexparcel.cli import main
 
-    out = tmp_path_factory.mktemp("small") / "assembly"
+    d = tmp_path_factory.mktemp("snaps")
+    out = d / "consignment_small"
     assert main(["assemble", str(SMALL_CONSIGNMENT), "--out", str(out), "--no-progress"]) == 0
-    return out
+    return d
 
 
 @pytest.fixture(scope="session")
-def snapshot_dir(tmp_path_factory) -> Path:
-    """DIR/consignment_small/snapshot.npz: the small example consignment
-    (examples/consignment_small.toml), assembled once for the session."""
-    from flexparcel.cli import main
-
-    example = Path(__file__).resolve().parents[1] / "examples" / "consignment_small.toml"
-    d = tmp_path_factory.mktemp("snaps")
-    out = d / "consignment_small"
-    assert main(["assemble", str(example), "--out", str(out), "--no-progress"]) == 0
-    return d
+def small_assembly(snapshot_dir) -> Path:
+    """The directory of :func:`snapshot_dir`'s assembly (one assembly serves both)."""
+    return snapshot_dir / "consignment_small"
 
 
 def fd_wrt_nodes(func, x, rot, eps):

@@ -317,9 +317,11 @@ def test_snapshot_of_another_format_or_mesh_is_refused(small, tmp_path):
 
 def test_swing_start_is_deterministic(small):
     # the same snapshot and parameters give bit-identical runs (no hidden state, no randomness);
-    # the full 1.4 s swing is far too long for the default suite (see the closing note)
-    a = swing_test(small, t_end=0.02)
-    b = swing_test(small, t_end=0.02)
+    # the full 1.4 s swing is far too long for the default suite. Clamped where the nodes
+    # settled (jaws=None): the jaw closing is a run of the same integrator, and the jaws have
+    # tests of their own
+    a = swing_test(small, t_end=0.02, jaws=None)
+    b = swing_test(small, t_end=0.02, jaws=None)
     assert np.array_equal(a.result.positions, b.result.positions)
     # released from horizontal under gravity: the free end starts to fall (measured 0.13 mm)
     # but, held by the clamped bending stiffness, by less than a free fall, g t^2 / 2 = 2 mm

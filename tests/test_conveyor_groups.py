@@ -240,13 +240,13 @@ def test_a_missed_merge_rewinds_the_frame_and_does_it_again_together(closing):
 def test_grouped_checkpoint_resumes_and_refuses_a_one_model_one(snap, tmp_path):
     layout = throughput_layout(snap.build, 2, speed=1.6)
     settings = GroupSettings(workers=1)
-    full = run_conveyor({"c": snap}, layout, 0.01, dt_out=0.002, groups=settings)
+    full = run_conveyor({"c": snap}, layout, 0.006, dt_out=0.002, groups=settings)
 
     class Stop(Exception):
         pass
 
     def stop_at(t, _t_end):
-        if t > 0.0055:
+        if t > 0.0035:
             raise Stop
 
     ck = tmp_path / "ck.npz"
@@ -254,24 +254,24 @@ def test_grouped_checkpoint_resumes_and_refuses_a_one_model_one(snap, tmp_path):
 
     with pytest.raises(Stop):
         conveyor_groups.integrate_by_groups(
-            build_conveyor_model({"c": snap}, layout), {"c": snap}, 0.01, dt_out=0.002,
+            build_conveyor_model({"c": snap}, layout), {"c": snap}, 0.006, dt_out=0.002,
             options=conveyor_options(), build_kwargs={}, settings=settings,
             progress=stop_at, checkpoint=ck, checkpoint_interval_s=0.0,
         )  # fmt: skip
     assert ck.is_file()
     before = ck.read_bytes()
     # what the checkpoint holds so far (run conveyor --preview), without stepping
-    seen = run_conveyor({"c": snap}, layout, 0.01, dt_out=0.002, groups=settings,
+    seen = run_conveyor({"c": snap}, layout, 0.006, dt_out=0.002, groups=settings,
                         checkpoint=ck, checkpoint_only=True)  # fmt: skip
-    assert seen.result.time[-1] == pytest.approx(0.004)  # the last frame saved before 0.0055
+    assert seen.result.time[-1] == pytest.approx(0.002)  # the last frame saved before 0.0035
     k = len(seen.result.time)
     np.testing.assert_array_equal(seen.result.positions, full.result.positions[:k])
     assert ck.read_bytes() == before
-    again = run_conveyor({"c": snap}, layout, 0.01, dt_out=0.002, groups=settings, checkpoint=ck)
+    again = run_conveyor({"c": snap}, layout, 0.006, dt_out=0.002, groups=settings, checkpoint=ck)
     np.testing.assert_array_equal(again.result.positions, full.result.positions)
     assert again.result.stats["steps"] == full.result.stats["steps"]
     with pytest.raises(CheckpointError, match=r"mode = 'groups', this run has mode = 'one-model'"):
-        run_conveyor({"c": snap}, layout, 0.01, dt_out=0.002, checkpoint=ck)
+        run_conveyor({"c": snap}, layout, 0.006, dt_out=0.002, checkpoint=ck)
 
 
 def test_groups_start_from_the_scenes_given_state(snap):
