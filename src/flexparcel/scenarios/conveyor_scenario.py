@@ -77,6 +77,8 @@ CONVEYOR_PARAMETERS: tuple[Parameter, ...] = (
               "(default: k_t = c, the contact stiffness); softer lets the time steps grow, "
               "and the content pre-slides mu_s F_N / k_t before it slips (docs/scenarios.md)"),
 )  # fmt: skip
+_PARAMETER = {q.name: q for q in CONVEYOR_PARAMETERS}
+
 WORKERS = Parameter("workers", "", 2, 0, 64, "worker processes (0: the scene as one model)",
                     integer=True)  # fmt: skip
 """The ``workers`` setting: consignments that cannot touch are integrated as separate models
@@ -98,10 +100,9 @@ def content_law_for(
     them divided by (10 mm)^2 [N/m^3]."""
     from flexparcel.contact.law import REFERENCE_AREA
 
-    (c_param, kt_param) = (q for q in CONVEYOR_PARAMETERS
-                           if q.name in ("content_stiffness", "stick_stiffness"))  # fmt: skip
-    c = None if stiffness_n_per_mm is None else c_param.check(stiffness_n_per_mm, label)
-    kt = None if stick_n_per_mm is None else kt_param.check(stick_n_per_mm, stick_label)
+    c, kt = (None if v is None else _PARAMETER[name].check(v, lab)
+             for name, v, lab in (("content_stiffness", stiffness_n_per_mm, label),
+                                  ("stick_stiffness", stick_n_per_mm, stick_label)))  # fmt: skip
     if c is None and kt is None:
         return None
     from flexparcel.consignments.build import default_packaging_content_law
@@ -124,8 +125,7 @@ def deflector_friction_table(mu: float | None):
         FrictionPair,
     )
 
-    (param,) = (q for q in CONVEYOR_PARAMETERS if q.name == "deflector_friction")
-    mu = param.check(mu)
+    mu = _PARAMETER["deflector_friction"].check(mu)
     row = FrictionPair(mu, mu, "study parameter deflector_friction")
     table = dict(DEFAULT_FRICTION_TABLE)
     table.update({key: row for key in table if key[1] == DEFLECTOR})

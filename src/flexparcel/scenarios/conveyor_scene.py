@@ -63,7 +63,7 @@ from flexparcel.consignments.build import (
 )
 from flexparcel.consignments.snapshot import Snapshot, place_snapshot
 from flexparcel.contact.geometry import segment_segment
-from flexparcel.contact.law import ContactLaw
+from flexparcel.contact.law import ContactLaw, normal_force_packed
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.integrate.linear import cholmod_available
 from flexparcel.io.tomlfile import read_toml
@@ -740,8 +740,6 @@ def deflector_node_forces(cm: ConveyorModel, result: SimulationResult) -> np.nda
     they multiply the law by). Nodes behind the sheet's mid-plane (half
     ``deflector_thickness`` behind the face) or off the rectangle do not count. Peaks between
     frames are missed: it samples the force every output interval."""
-    from flexparcel.contact.law import normal_force_packed
-
     area = np.zeros(cm.model.node_count)
     for cs in cm.model.contact_sets:
         if cs.kind == "node_face":  # packaging on the deflector faces carries every node's area
@@ -758,10 +756,19 @@ def deflector_node_forces(cm: ConveyorModel, result: SimulationResult) -> np.nda
             s = h - dist
             on &= (s > 0.0) & (dist > -0.5 * cm.parts.scene.deflector_thickness)  # upstream
             rate = -(v @ g.normal)
-            for k, i in zip(*np.nonzero(on), strict=True):
-                node = c.packaging[i]
-                f = normal_force_packed(float(s[k, i]), float(rate[k, i]), law)[0]
-                out[d, k, node] = f * area[node]
+            k, i = np.nonzero(on)
+            node = c.packaging[i]
+            out[d, k, node] = _law_pressures(s[k, i], rate[k, i], law) * area[node]
+    return out
+
+
+@nb.njit(cache=True)
+def _law_pressures(s, rate, law):
+    """The packed law's normal pressure [N/m^2] at each penetration ``s`` [m] and rate
+    ``rate`` [m/s], shape (m,)."""
+    out = np.empty(s.size)
+    for q in range(s.size):
+        out[q] = normal_force_packed(s[q], rate[q], law)[0]
     return out
 
 
@@ -996,8 +1003,8 @@ def conveyor_options() -> IntegratorOptions:
     matrix (one per consignment or group of touching ones) in single precision refined to a
     double-precision solution (``"superlu-blocks-mixed"``). Measured on each paper consignment
     alone on the belt at 25 mm from its shipped snapshot, Table 6 content contact, first
-    0.01 s, one model (``flexparcel bench conveyor --conveyor-consignments PB --t-end 0.01
-    --workers 0``, and the same with ``linear_solver`` set): PB 52 s
+    0.01 s, one model (:func:`run_conveyor` on :func:`default_layout` of that consignment
+    alone, with ``options=replace(conveyor_options(), linear_solver=...)``): PB 52 s
     against 100 s (factorisation 20.5 s against 66.1 s; its 3,030-DOF block with the hex
     content fills to 1.16 million LU entries), KP 32 s against 46 s, BW 18 s against 25 s;
     the same steps within 7 %, the centroids within 0.3 um. PB, the slowest consignment, sets
