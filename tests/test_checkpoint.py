@@ -35,7 +35,8 @@ def _scene(friction: float = 0.3):
     pts, quads = fp.mesh.rectangle(0.04, 0.04, 2, 2, origin=(0.21, -0.02, 1.5 * SHEET_T - 1e-6))
     upper = b.add_shell_mesh(pts, quads, material=mat)
     b.add_contact(lower, parts.belt_plane, law, radius=SHEET_T / 2)
-    b.add_face_contact(upper, lower, law, thickness=SHEET_T)
+    with b.monitored_contacts():  # its impulse record resumes too
+        b.add_face_contact(upper, lower, law, thickness=SHEET_T)
     box = b.add_rigid_body(RoundedBox(0.1, 0.08, 0.04, 0.004, mass=0.3), (0.3, 0.3, 0.0205))
     b.add_contact(box, parts.belt_plane, law)
     model = b.finalize()
@@ -84,6 +85,9 @@ def test_interrupted_run_resumes_exactly(straight, tmp_path):
     np.testing.assert_array_equal(res.positions, ref.positions)
     np.testing.assert_array_equal(res.velocities, ref.velocities)
     np.testing.assert_array_equal(res.final_state.rotations, ref.final_state.rotations)
+    # the upper sheet's weight on the lower one, recorded across the interruption
+    assert np.abs(ref.monitored_impulses[-1]).sum() > 0.0
+    np.testing.assert_array_equal(res.monitored_impulses, ref.monitored_impulses)
     for k in ("steps", "rejected_steps", "newton_iterations"):
         assert res.stats[k] == ref.stats[k], k
     # the checkpoint held live stick history: plane springs and face anchors of the upper

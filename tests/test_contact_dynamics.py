@@ -238,3 +238,79 @@ def test_stick_model_holds_on_incline_and_lets_slide_above(theta_deg):
     else:
         a = np.polyfit(r.time[20:], v[20:], 1)[0]
         assert a == pytest.approx(G * (np.sin(th) - mu_d * np.cos(th)), rel=1e-2)
+
+
+def _monitored_box_on_plane(law, *, gravity, z0, mass=0.1, surface_velocity=(0.0, 0.0, 0.0)):
+    b = fp.ModelBuilder(gravity=gravity)
+    node = b.add_rigid_body(RoundedBox(0.1, 0.08, 0.02, 0.002, mass=mass), (0.0, 0.0, z0))
+    plane = b.add_plane((0, 0, 0), (0, 0, 1), surface_velocity)
+    with b.monitored_contacts():
+        b.add_contact(node, plane, law)
+    return b.finalize(), node
+
+
+@pytest.mark.parametrize("stiffness", [1e5, 1e6])
+def test_monitored_impulse_of_an_impact_is_the_momentum_it_reverses(stiffness):
+    # Newton's second law over the whole impact: the plane's impulse on a box that meets it at
+    # 1 m/s (no gravity) is m (v_after - v_before), whatever the contact's stiffness. The
+    # recorded impulse is the contact's share of the scheme's own momentum update
+    # (GeneralizedAlpha._monitor_step), so it matches to round-off and the Newton residual
+    # (measured 1e-14 and 2e-12 relative; allowed 1e-6). The end-of-step forces times h alone
+    # were 6 % off here: the steps change size through the impact.
+    m = 0.1
+    d = 2 * 0.2 * np.sqrt(stiffness * m / 4)  # zeta = 0.2 per corner
+    law = ContactLaw.from_point_values(REFERENCE_AREA, stiffness=stiffness, damping=d,
+                                       damping_option="indentation",
+                                       indentation_exponent=0.0)  # fmt: skip
+    model, node = _monitored_box_on_plane(law, gravity=(0, 0, 0), z0=0.0101, mass=m)
+    s = model.initial_state()
+    s.velocities[node, 2] = -1.0
+    r = fp.simulate(model, 0.03, state=s, dt_out=0.001)
+    v_after = r.velocities[-1, node, 2]
+    assert 0.1 < v_after < 1.0  # it bounced off, and the dashpot took energy
+    impulse = r.monitored_impulses[:, node]
+    assert impulse.shape == (r.time.size, 3) and np.all(impulse[0] == 0.0)
+    assert impulse[-1, 2] == pytest.approx(m * (v_after + 1.0), rel=1e-6)
+    # the interval means add up to the impulse
+    mean = r.mean_monitored_forces()
+    assert mean.shape == (r.time.size - 1, 3)
+    assert np.sum(mean[:, 2] * np.diff(r.time)) == pytest.approx(impulse[-1, 2], rel=1e-12)
+
+
+@pytest.mark.parametrize("stiffness", [1e5, 1e6])
+def test_monitored_mean_force_of_a_box_on_a_belt_is_its_weight_and_friction(stiffness):
+    # A box dropped onto a belt that slides under it at 0.5 m/s: over every output interval
+    # the belt's impulse is the box's momentum change less gravity's (the shares of the
+    # scheme's momentum balance, see GeneralizedAlpha._monitor_step), to the residual Newton
+    # leaves (measured 4e-7 of m g; allowed 1e-5). Over
+    # 0.05-0.1 s, while it still slips (it reaches belt speed after v / (mu g) = 0.17 s),
+    # the mean force is its weight m g up and the dynamic friction mu m g along the belt,
+    # for either contact stiffness; the box still rocks on its corners (each interval's mean
+    # is within 2 % of m g), so the window's mean is allowed 1 %.
+    m, mu = 0.1, 0.3
+    law = ContactLaw.from_point_values(REFERENCE_AREA, stiffness=stiffness, damping=20.0,
+                                       damping_option="indentation", indentation_exponent=0.0,
+                                       mu_static=mu, mu_dynamic=mu)  # fmt: skip
+    z0 = 0.01 - m * G / (4 * stiffness)  # the corners at their resting penetration
+    model, node = _monitored_box_on_plane(law, gravity=(0, 0, -G), z0=z0, mass=m,
+                                          surface_velocity=(0.5, 0.0, 0.0))  # fmt: skip
+    r = fp.simulate(model, 0.1, dt_out=0.005)
+    mean = r.mean_monitored_forces([node])
+    dt = np.diff(r.time)
+    dv = np.diff(r.velocities[:, node, :3], axis=0)
+    np.testing.assert_allclose(mean, m * dv / dt[:, None] + [0.0, 0.0, m * G], rtol=0,
+                               atol=1e-5 * m * G)  # fmt: skip
+    late = r.time[1:] > 0.05 + 1e-9
+    assert np.all(r.velocities[1:, node, 0][late] < 0.45)  # still slipping
+    window = np.sum(mean[late] * dt[late, None], axis=0) / dt[late].sum()
+    assert window[2] == pytest.approx(m * G, rel=1e-2)
+    assert window[0] == pytest.approx(mu * m * G, rel=1e-2)
+
+
+def test_a_model_without_monitored_contacts_records_no_impulse():
+    law = _linear_law(0.3, 0.3)
+    model, _ = _box_on_plane(law, gravity=(0, 0, -G), z0=0.0101)
+    r = fp.simulate(model, 0.002, dt_out=0.001)
+    assert r.monitored_impulses is None
+    with pytest.raises(ValueError, match="monitors no contact"):
+        r.mean_monitored_forces()

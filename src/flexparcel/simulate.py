@@ -21,6 +21,7 @@ from flexparcel.integrate.dynamic import GeneralizedAlpha, IntegratorOptions
 from flexparcel.io.checkpoint import (
     CHECKPOINT_FORMAT,
     CHECKPOINT_VERSION,
+    MONITORED_FRAME_KEY,
     RunCheckpoint,
     check_same_run,
     load_checkpoint,
@@ -58,11 +59,29 @@ class SimulationResult:
     final_state: State
     stats: dict = field(default_factory=dict)
     """Step counts, Newton iterations, factorisations and wall time per phase [s]."""
+    monitored_impulses: np.ndarray | None = None
+    """Impulse [N s] the monitored contact sets
+    (:meth:`~flexparcel.builder.model_builder.ModelBuilder.monitored_contacts`) exerted on
+    each node from the start of the run to each frame, shape (k, node_count, 3); None when
+    the model monitors no contact. Its difference between two frames over their time apart
+    is the mean force over that interval (:meth:`mean_monitored_forces`)."""
 
     @property
     def displacements(self) -> np.ndarray:
         """Displacements from the first recorded frame [m], shape (k, node_count, 3)."""
         return self.positions - self.positions[0]
+
+    def mean_monitored_forces(self, nodes: np.ndarray | None = None) -> np.ndarray:
+        """Mean force [N] of the monitored contacts on ``nodes`` (default all) over each
+        output interval, summed over those nodes, shape (k - 1, 3): the impulse between
+        frames i and i + 1 over their time apart. Unlike a sample of the contact force at
+        a frame, it does not depend on when the steps fall or on the contact's stiffness
+        spikes: it is the load a force gauge averaging over ``dt_out`` would read."""
+        if self.monitored_impulses is None:
+            raise ValueError("mean_monitored_forces: the model monitors no contact")
+        imp = self.monitored_impulses if nodes is None else self.monitored_impulses[:, nodes]
+        total = imp.sum(axis=1)
+        return np.diff(total, axis=0) / np.diff(self.time)[:, None]
 
 
 def state_energies(model: Model, state: State) -> tuple[float, float, float]:
@@ -92,8 +111,16 @@ class FrameRecorder:
     def __init__(self, model: Model) -> None:
         self.model = model
         self._t, self._x, self._r, self._v, self._e = [], [], [], [], []
+        # impulses of the monitored contacts, or None where the model monitors none
+        self._imp = [] if any(cs.monitored for cs in model.contact_sets) else None
 
-    def record(self, st: State) -> None:
+    def record(self, st: State, impulse: np.ndarray | None = None) -> None:
+        """Record ``st``; ``impulse``: the monitored contacts' impulse on each node so far
+        (n, 3), required when the model monitors contacts."""
+        if self._imp is not None:
+            if impulse is None:
+                raise ValueError("FrameRecorder: the model monitors contacts, give the impulse")
+            self._imp.append(np.array(impulse, dtype=float))
         self._t.append(st.time)
         self._x.append(st.positions.copy())
         self._r.append(rotation_vectors(st.rotations))
@@ -102,6 +129,13 @@ class FrameRecorder:
 
     def extend(self, frames: dict[str, np.ndarray]) -> None:
         """Append the frames of a checkpoint (:meth:`frames`'s layout)."""
+        if self._imp is not None:
+            if MONITORED_FRAME_KEY not in frames:
+                raise ValueError(
+                    "the checkpoint's frames hold no monitored contact impulses (written "
+                    "before they were recorded); remove it to start the run over"
+                )
+            self._imp.extend(frames[MONITORED_FRAME_KEY])
         self._t.extend(frames["time"].tolist())
         self._x.extend(frames["positions"])
         self._r.extend(frames["rotation_vectors"])
@@ -110,12 +144,16 @@ class FrameRecorder:
 
     def frames(self) -> dict[str, np.ndarray]:
         """The frames as arrays: ``time`` (k,), ``positions`` (k, n, 3), ``rotation_vectors``
-        (k, n, 3), ``velocities`` (k, n, 6), ``energies`` (k, 3) [J]."""
-        return {
+        (k, n, 3), ``velocities`` (k, n, 6), ``energies`` (k, 3) [J], and where the model
+        monitors contacts ``monitored_impulses`` (k, n, 3) [N s]."""
+        out = {
             "time": np.array(self._t), "positions": np.array(self._x),
             "rotation_vectors": np.array(self._r), "velocities": np.array(self._v),
             "energies": np.array(self._e),
         }  # fmt: skip
+        if self._imp is not None:
+            out[MONITORED_FRAME_KEY] = np.array(self._imp).reshape(-1, self.model.node_count, 3)
+        return out
 
     def result(self, final_state: State, stats: dict) -> SimulationResult:
         f = self.frames()
@@ -133,6 +171,7 @@ class FrameRecorder:
             },  # fmt: skip
             final_state=final_state,
             stats=stats,
+            monitored_impulses=f.get(MONITORED_FRAME_KEY),
         )
 
 
@@ -163,6 +202,11 @@ class Stepper(ABC):
 
     def after_frame(self, state: State, index: int) -> None:  # noqa: B027 (optional)
         """Called after frame ``index`` (counted from this call of simulate) was recorded."""
+
+    def monitored_impulse(self) -> np.ndarray | None:
+        """Impulse [N s] of the model's monitored contacts on each node since the start,
+        (n, 3), or None where it monitors none."""
+        return None
 
     @abstractmethod
     def history(self) -> dict[str, np.ndarray]:
@@ -218,6 +262,9 @@ class ModelStepper(Stepper):
 
     def statistics(self) -> dict:
         return asdict(self.integrator.stats)
+
+    def monitored_impulse(self) -> np.ndarray | None:
+        return self.integrator.monitored_impulse
 
 
 def simulate(
@@ -305,7 +352,7 @@ def _run(model, s, t_end, dt_out, stepper, progress, checkpoint, interval, check
     wall_before = 0.0  # wall time of the run before it was resumed
     if resumed is None:
         s = stepper.begin(s)
-        rec.record(s)
+        rec.record(s, stepper.monitored_impulse())
     else:
         rec.extend(resumed.frames)
         s = stepper.resume(resumed.state, resumed.history)
@@ -326,7 +373,7 @@ def _run(model, s, t_end, dt_out, stepper, progress, checkpoint, interval, check
     for i, t_out in enumerate(out_times):
         s = stepper.advance(s, t_out, step_progress)
         s.time = float(t_out)  # remove round-off drift so outputs sit on the grid
-        rec.record(s)
+        rec.record(s, stepper.monitored_impulse())
         stepper.after_frame(s, i)
         if checkpoint is not None and t_out != out_times[-1]:
             if _time.perf_counter() - last_save >= interval:

@@ -10,6 +10,8 @@ An element kind or contact pair without an ``add_*`` method comes in through
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -189,6 +191,18 @@ class ModelBuilder:
         if nodes.size:
             self._check_ids("add_contact_set", nodes)
         self._contact_sets.append(contact_set)
+
+    @contextmanager
+    def monitored_contacts(self) -> Iterator[None]:
+        """Contact sets added inside this ``with`` block are *monitored*: the integrator
+        records the impulse [N s] they exert on every node
+        (:attr:`flexparcel.simulate.SimulationResult.monitored_impulses`), so that a load
+        such as a deflector's on a consignment can be read as a mean force over any
+        interval, whatever the contact's stiffness and the step sizes."""
+        first = len(self._contact_sets)
+        yield
+        for cs in self._contact_sets[first:]:
+            cs.monitored = True
 
     def add_rigid_body(
         self,

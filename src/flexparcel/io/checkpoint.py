@@ -26,6 +26,7 @@ __all__ = [
     "CHECKPOINT_FORMAT",
     "CHECKPOINT_VERSION",
     "CheckpointError",
+    "MONITORED_FRAME_KEY",
     "RunCheckpoint",
     "check_same_run",
     "model_fingerprint",
@@ -93,12 +94,16 @@ class RunCheckpoint:
 
 _FRAME_KEYS = ("time", "positions", "rotation_vectors", "velocities", "energies")
 _STATE_KEYS = ("positions", "rotations", "velocities", "accelerations")
+MONITORED_FRAME_KEY = "monitored_impulses"
+"""Frames of a model with monitored contacts also hold their impulse on every node."""
 
 
 def save_checkpoint(path: str | Path, ckpt: RunCheckpoint) -> Path:
     """Write ``ckpt`` to ``path`` (.npz) atomically; returns the path."""
     arrays = {"header": np.array(json.dumps(ckpt.header, sort_keys=True))}
     arrays.update({f"frame_{k}": np.asarray(ckpt.frames[k]) for k in _FRAME_KEYS})
+    if MONITORED_FRAME_KEY in ckpt.frames:
+        arrays[f"frame_{MONITORED_FRAME_KEY}"] = np.asarray(ckpt.frames[MONITORED_FRAME_KEY])
     arrays["state_time"] = np.array(float(ckpt.state.time))
     arrays.update({f"state_{k}": getattr(ckpt.state, k) for k in _STATE_KEYS})
     arrays.update({f"hist_{k}": v for k, v in ckpt.history.items()})
@@ -133,6 +138,8 @@ def load_checkpoint(path: str | Path) -> RunCheckpoint:
         )
     try:
         frames = {k: data[f"frame_{k}"] for k in _FRAME_KEYS}
+        if f"frame_{MONITORED_FRAME_KEY}" in data:  # a model with monitored contacts
+            frames[MONITORED_FRAME_KEY] = data[f"frame_{MONITORED_FRAME_KEY}"]
         state = State(float(data["state_time"]), *(data[f"state_{k}"] for k in _STATE_KEYS))
     except KeyError as e:
         raise CheckpointError(f"checkpoint {path}: missing array {e}") from e

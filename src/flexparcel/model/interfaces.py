@@ -205,6 +205,9 @@ class ContactSet(ABC):
     key: str = ""
     law_index: int = -1
     schedule_index: int = -1
+    monitored: bool = False
+    """The integrator records this set's impulse on every node
+    (:meth:`flexparcel.builder.model_builder.ModelBuilder.monitored_contacts`)."""
 
     def __init__(self, law, schedule) -> None:
         self.law = law
