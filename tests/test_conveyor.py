@@ -105,7 +105,9 @@ def _box_against_deflector(theta_deg, mu_f, mu_b, t_end, stick=False, options=No
     centre = g.point + 0.12 * g.tangent + 0.075 * g.normal + np.array([0.0, 0.0, 0.025 - SINK])
     node = b.add_rigid_body(BOX, tuple(centre))
     b.add_contact(node, parts.belt_plane, law(mu_b))
-    b.add_contact(node, b.add_plane(tuple(g.point), tuple(g.normal)), law(mu_f))
+    face = b.add_plane(tuple(g.point), tuple(g.normal))
+    with b.monitored_contacts():  # the deflector's load on the box
+        b.add_contact(node, face, law(mu_f))
     model = b.finalize()
     s = model.initial_state()
     # body x (the long side) along the deflector: first deflector, tangent (cos, -sin, 0)
@@ -135,6 +137,13 @@ def test_belt_drags_box_along_a_45_degree_deflector_at_the_closed_form_speed():
     late = r.time >= 0.8 - 1e-9
     assert np.all(np.abs(u[late] / (vb * (np.cos(th) - mu_f * np.sin(th))) - 1.0) < 5e-3)
     assert np.abs(un[late]).max() < 1e-3  # pressed against the face, not bouncing
+    # the deflector's mean force balances the belt's friction mu_b m g (the box moves
+    # steadily): its normal part N = mu_b m g / sqrt(1 + mu_f^2), its friction mu_f N against
+    # the sliding; within 1 % (the speed is 0.4 % from its limit at 0.8 s)
+    mean = r.mean_monitored_forces([node])[late[1:]].mean(axis=0)
+    n_exact = 1.0 * BOX.mass * G / np.sqrt(1.0 + mu_f**2)
+    assert mean @ g.normal == pytest.approx(n_exact, rel=1e-2)
+    assert mean @ g.tangent == pytest.approx(-mu_f * n_exact, rel=1e-2)
     # stays in contact all the way and is not jammed
     assert resp.deflector_contact_time == pytest.approx((0.9,), abs=0.01)
     assert resp.jam_start is None
@@ -174,6 +183,10 @@ def test_box_stalls_against_a_deflector_when_mu_f_exceeds_cot_theta():
     assert np.abs(u[late]).max() < 1e-3
     along = (r.positions[:, node] - g.point) @ g.tangent
     assert along[-1] - along[0] < 2e-3  # mostly the initial settling
+    # held: the deflector's mean force is the belt's friction mu_b m g turned back (1 %)
+    mean = r.mean_monitored_forces([node])[late[1:]]
+    np.testing.assert_allclose(mean, np.tile([-0.5 * G, 0.0, 0.0], (len(mean), 1)),
+                               rtol=0, atol=1e-2 * 0.5 * G)  # fmt: skip
     assert resp.jam_start == 0.0  # never 5 mm of progress along x in 0.3 s
 
 

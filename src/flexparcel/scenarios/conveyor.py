@@ -479,7 +479,9 @@ def add_deflector_contact(
     let an element edge wrapped round the tip pass between them (in 2 s runs of the paper
     scene without them, packaging edges came up to 1.2 mm inside the contact thickness
     there); in one such run a film hanging over the belt edge at the second deflector's root
-    wrapped the sheet's outer end, and an element cut through the sheet there."""
+    wrapped the sheet's outer end, and an element cut through the sheet there. All these
+    contacts are monitored (:meth:`ModelBuilder.monitored_contacts`): a run records the
+    deflectors' impulse on every node of the mesh."""
     thick = parts.deflector_contact_thickness(shell_half_thickness)
     for verts, tip, end, g in zip(
         parts.deflector_vertices,
@@ -488,9 +490,12 @@ def add_deflector_contact(
         parts.deflectors,
         strict=True,
     ):
-        builder.add_face_contact(node_ids, verts, law, thickness=thick)
-        segment = g.height / (len(tip) - 1)
-        samples = max(1, math.ceil(segment / TIP_STATION_SPACING - 1e-9))
-        for edge in (tip, end):
-            builder.add_edge_face_contact(edge, node_ids, law, thickness=thick, samples=samples)
-            builder.add_edge_edge_contact(edge, node_ids, law, thickness=thick)
+        # monitored: the run records the deflectors' impulse on the consignment's nodes
+        with builder.monitored_contacts():
+            builder.add_face_contact(node_ids, verts, law, thickness=thick)
+            segment = g.height / (len(tip) - 1)
+            samples = max(1, math.ceil(segment / TIP_STATION_SPACING - 1e-9))
+            for edge in (tip, end):
+                builder.add_edge_face_contact(edge, node_ids, law, thickness=thick,
+                                              samples=samples)  # fmt: skip
+                builder.add_edge_edge_contact(edge, node_ids, law, thickness=thick)

@@ -140,6 +140,8 @@ def mesh_gap(pos: np.ndarray, a: tuple, b: tuple, limit: float) -> float:
 # ------------------------------------------------------------------ one group's integration
 
 
+# the integrator's monitored-contact arrays (GeneralizedAlpha.history), per node
+_MONITOR_KEYS = ("monitored_impulse", "monitored_force", "monitored_alg")
 _ROWS = "rows"
 """Prefix of the exported row identities of each contact set's history."""
 
@@ -206,7 +208,9 @@ class _Group:
         # node arrays: scattered into full-scene numbering, then gathered for this model
         n_full = 1 + max(int(e["nodes"].max()) for e in exports)
         node = {}
-        for key in ("positions", "rotations", "velocities", "accelerations", "alg", "fc_prev"):
+        keys = ("positions", "rotations", "velocities", "accelerations", "alg", "fc_prev",
+                *(k for k in _MONITOR_KEYS if k in hist))  # fmt: skip
+        for key in keys:
             full = np.full((n_full, *exports[0][key].shape[1:]), np.nan)
             for e in exports:
                 full[e["nodes"]] = e[key]
@@ -214,6 +218,7 @@ class _Group:
             if np.isnan(node[key]).any():
                 raise ValueError(f"group {self.names}: the exports do not cover its nodes")
         hist["alg"], hist["fc_prev"] = node["alg"], node["fc_prev"]
+        hist.update({k: node[k] for k in _MONITOR_KEYS if k in hist})
         pos, rot, vel, acc = (node[k] for k in ("positions", "rotations", "velocities",
                                                  "accelerations"))  # fmt: skip
         self._take_contact_history(hist, exports)
@@ -281,11 +286,13 @@ class _Group:
 
     def frame(self) -> dict:
         s = self.state
+        imp = self.integ.monitored_impulse
         return {
             "nodes": self.full,
             "positions": s.positions.copy(),
             "rotations": s.rotations.copy(),
             "velocities": s.velocities.copy(),
+            "monitored_impulse": None if imp is None else imp.copy(),
             "wall": self.wall,
             "stats": asdict(self.integ.stats),
         }
@@ -532,6 +539,12 @@ class GroupStepper(Stepper):
         self.worker_wall = [0.0] * n
         self._next_key = 0
         self.cur: State | None = None
+        # the monitored (deflector) contacts' impulse on each consignment node; the
+        # conveyor's own nodes are in every group's model and keep 0 here
+        monitored = any(cs.monitored for cs in model.contact_sets)
+        self.impulse = np.zeros((model.node_count, 3)) if monitored else None
+        self._consignment_node = np.zeros(model.node_count, bool)
+        self._consignment_node[np.concatenate(list(self.full_ids.values()))] = True
 
     # ---------------------------------------------------------------- the Stepper protocol
     def options_header(self) -> dict:
@@ -590,6 +603,9 @@ class GroupStepper(Stepper):
             h.send("export", k)
             hist.update(_export_arrays(f"g{i}_", h.recv()))
         return hist
+
+    def monitored_impulse(self) -> np.ndarray | None:
+        return self.impulse
 
     def statistics(self) -> dict:
         total = dict(self.retired)
@@ -666,6 +682,7 @@ class GroupStepper(Stepper):
         h = self.handles[worker]
         h.send("create", (key, tuple(members), exports))
         fr = h.recv()
+        self._store_impulse(fr)
         self.groups[key] = _GroupInfo(
             tuple(members), worker, self._nodes_of(members), stats=fr["stats"]
         )
@@ -689,6 +706,13 @@ class GroupStepper(Stepper):
         self.cur.positions[ids] = fr["positions"]
         self.cur.rotations[ids] = fr["rotations"]
         self.cur.velocities[ids] = fr["velocities"]
+        self._store_impulse(fr)
+
+    def _store_impulse(self, fr: dict) -> None:
+        """Take a group frame's monitored impulse on its consignments' nodes."""
+        if self.impulse is not None:
+            own = self._consignment_node[fr["nodes"]]
+            self.impulse[fr["nodes"][own]] = fr["monitored_impulse"][own]
 
     def _motion(self) -> dict:
         """Per placement: packaging bounding box, mean velocity u and largest speed about it."""

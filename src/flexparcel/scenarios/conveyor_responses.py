@@ -29,9 +29,11 @@ Definitions (SI units; angles in degrees):
   ``jam_distance`` beyond x(t0) during ``jam_time``; None if there is none. Windows that run
   past the end of the record are not judged, so a jam in the last ``jam_time`` of a run goes
   unreported; :meth:`ConsignmentResponse.jam_verdict` says which case a None is.
-* contact force: a force time series the caller supplies per consignment (e.g. summed
-  deflector contact forces), shape (k,) or (k, 3) [N], kept as its magnitude (k,); its peak
-  and the peak's time; None when not supplied.
+* contact force: a force time series the caller supplies per consignment, shape (k,) or
+  (k, 3) [N], kept as its magnitude (k,); its peak and the peak's time; None when not
+  supplied. :func:`~flexparcel.scenarios.conveyor_scene.run_conveyor` supplies the
+  deflectors' mean force over the output interval that ends at each frame (from the
+  recorded impulse), so the peak's time is the end of that interval.
 
 ``responses.json`` (:meth:`ConsignmentResponse.to_dict`) names every quantity with its unit
 (``_s``, ``_m``, ``_deg``, ``_N``) and gives a note for every null.

@@ -11,7 +11,9 @@ from) and ``preview`` (no stepping: the frames the checkpoint holds so far).
 Responses, per placement NAME: ``NAME.exit_time`` [s], ``NAME.final_x`` / ``NAME.final_y``
 [m], ``NAME.deflector_contact_duration_I`` [s] (I = 1, 2, ...; not reached: never within
 2 mm of that deflector), ``NAME.jam_start`` [s],
-``NAME.peak_contact_force`` [N], ``NAME.deflector_crossing`` [s] (not reached: the wanted
+``NAME.peak_contact_force`` [N] (the largest mean deflector force over an output interval,
+:func:`~flexparcel.scenarios.conveyor_scene.deflector_mean_forces`),
+``NAME.deflector_crossing`` [s] (not reached: the wanted
 outcome, no packaging node went behind a deflector).
 
 Files (in ``out_dir``): ``responses.json`` (per-consignment trajectories and responses),
@@ -326,7 +328,8 @@ def _consignment_responses(name: str, r: Any, crossing: float | None) -> dict[st
             r.jam_start, "s", "start of the first jam",
             "" if r.jam_start is not None else "no jam within the run"),
         f"{name}.peak_contact_force": Response(
-            r.peak_contact_force, "N", "largest deflector normal force",
+            r.peak_contact_force, "N", "largest deflector force (normal and friction), the "
+            "mean over an output interval",
             "" if r.peak_contact_force is not None else "no contact force recorded"),
         f"{name}.deflector_crossing": Response(
             crossing, "s", "first time a packaging node lies behind a deflector",
@@ -381,8 +384,9 @@ def _group_responses(responses: Mapping[str, Any]) -> dict[str, Response]:
             "of the consignments' exit y positions", "" if len(ys) >= 2 else "fewer than two "
             "consignments reached the belt end within the run"),
         "group.peak_contact_force": Response(
-            max(forces) if forces else None, "N", "largest deflector normal force on any "
-            "consignment", "" if forces else "no contact force recorded"),
+            max(forces) if forces else None, "N", "largest deflector force (mean over an "
+            "output interval) on any consignment", "" if forces else "no contact force "
+            "recorded"),
     }  # fmt: skip
 
 

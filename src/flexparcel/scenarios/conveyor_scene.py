@@ -108,6 +108,7 @@ __all__ = [
     "belt_law",
     "build_conveyor_model",
     "deflector_normal_forces",
+    "deflector_mean_forces",
     "deflector_crossings",
     "deflector_edge_depths",
     "content_below_belt",
@@ -780,6 +781,27 @@ def deflector_normal_forces(cm: ConveyorModel, result: SimulationResult) -> dict
     return {name: per_node[:, c.packaging].sum(axis=1) for name, c in cm.consignments.items()}
 
 
+def deflector_mean_forces(
+    cm: ConveyorModel, result: SimulationResult
+) -> dict[str, np.ndarray] | None:
+    """Force [N] of all deflectors on each consignment, the mean over each output interval:
+    placement name -> shape (k,), the magnitude of the deflectors' impulse on its nodes
+    between frames i - 1 and i over their time apart (0 at frame 0, which ends no interval).
+    Normal force and friction together. From the impulse the run records
+    (:attr:`~flexparcel.simulate.SimulationResult.monitored_impulses`; the deflector contacts
+    are monitored), so it is the load a force gauge averaging over ``dt_out`` reads, whatever
+    the contact's stiffness and the step sizes, where a sample at the frame
+    (:func:`deflector_normal_forces`) catches the contact law's spikes or misses them. None
+    for a result without the record."""
+    if result.monitored_impulses is None:
+        return None
+    out = {}
+    for name, c in cm.consignments.items():
+        mean = result.mean_monitored_forces(c.node_ids)
+        out[name] = np.concatenate([[0.0], np.linalg.norm(mean, axis=1)])
+    return out
+
+
 def deflector_crossings(
     cm: ConveyorModel, result: SimulationResult, depth: float = 0.01
 ) -> dict[str, float | None]:
@@ -1043,7 +1065,8 @@ def run_conveyor(
     """Build the scene (:func:`build_conveyor_model`), simulate ``t_end`` [s] in (0, 10]
     recording every ``dt_out`` [s], and compute each consignment's responses
     (:func:`~flexparcel.scenarios.conveyor_responses.conveyor_responses`, with the
-    deflector normal forces of :func:`deflector_normal_forces` as its contact forces).
+    deflectors' mean force over each output interval, :func:`deflector_mean_forces`, as its
+    contact forces).
 
     Integrator defaults: :func:`conveyor_options`. ``checkpoint``: a ``.npz`` path the run
     saves itself to about once a minute and resumes from (see :func:`flexparcel.simulate`);
@@ -1078,7 +1101,7 @@ def run_conveyor(
                                   checkpoint=checkpoint,
                                   checkpoint_only=checkpoint_only)  # fmt: skip
     wall = res.stats["wall_s"]["total"]  # with the wall time before a resumption
-    forces = deflector_normal_forces(cm, res)
+    forces = deflector_mean_forces(cm, res)
     responses = conveyor_responses(
         res, cm.node_sets(), layout.conveyor, contact_forces=forces,
         jam_time=jam_time,

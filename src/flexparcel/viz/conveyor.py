@@ -149,11 +149,12 @@ def plot_conveyor_motion(
         if c.get("contact_force_N") is None:
             missing["force"].append(name)
         else:
-            fx.plot(t, c["contact_force_N"], color=colour, label=name)
+            # each value is the mean over the interval that ends at its frame
+            fx.step(t, c["contact_force_N"], where="pre", color=colour, label=name)
     vx.axhline(belt_speed, color="k", linestyle=":", linewidth=0.8, label="belt")
     vx.set_ylabel("centroid speed [m/s]")
     yx.set_ylabel("yaw [deg]")
-    fx.set_ylabel("deflector normal force [N]")
+    fx.set_ylabel("deflector force [N]\n(mean over each frame interval)")
     fx.set_xlabel("t [s]")
     notes = {"yaw": "no yaw (no clear long axis)", "force": "no force recorded"}
     for ax, key in ((yx, "yaw"), (fx, "force")):

@@ -241,7 +241,8 @@ def _exit_table(s: dict) -> str:
     rows = [_exit_row(name, c, crossings.get(name)) for name, c in s["consignments"].items()]
     header = ["consignment", "exit time [s]", "exit y [mm]", "final x, y [m]",
               "deflector contact [s] (from t [s]), per deflector",
-              "peak deflector force [N]", "jam", "behind a deflector"]  # fmt: skip
+              "peak deflector force [N] (mean over a frame interval)", "jam",
+              "behind a deflector"]  # fmt: skip
     caption = ("Exit: the centroid passes the belt end. Deflector contact: time any node "
                "spends within 2 mm of each deflector's face, and when it first did. Behind "
                "a deflector: a packaging node went through it (the contact failed).")  # fmt: skip
