@@ -145,6 +145,22 @@ def test_example_scene_file():
     check_layout(SceneLayout(s.conveyor, s.placements, s.gap_above_belt), builds)
 
 
+def test_jam_example_scene_puts_the_pouch_at_rest_just_before_the_steep_deflector():
+    # examples/conveyor_jam_scene.toml (run by tests/test_slow_verification.py): the pouch's
+    # footprint clear of the 75 deg deflector by a few mm, at rest on the 2 m/s belt
+    s = load_scene_file(ROOT / "examples" / "conveyor_jam_scene.toml")
+    assert s.conveyor.deflector_angle_deg == 75 and s.conveyor.belt_speed == 2.0
+    (p,) = s.placements
+    assert p.speed == 0.0 and s.t_end == pytest.approx(0.7)
+    builds = {"consignment_small": load_consignment_file(EXAMPLE)}
+    check_layout(SceneLayout(s.conveyor, s.placements, s.gap_above_belt), builds)
+    # the flat footprint's front corner on the root side is the nearest point to the face
+    length, width = builds["consignment_small"].flat_size
+    corner = np.array([p.x + 0.5 * length, p.y + 0.5 * width, 0.0])
+    g = s.conveyor.deflectors()[0]
+    assert 0.0 < (corner - g.point) @ g.normal < 0.01
+
+
 def test_scene_file_default_queue_takes_the_paper_conveyor(tmp_path):
     s = load_scene_file(_scene(tmp_path, HEAD + 'consignments = ["KPBW", "BW"]\n'
                                "[belt]\nspeed_m_s = 2.0\n"))  # fmt: skip
