@@ -168,5 +168,12 @@ def test_bad_checkpoint_files_name_the_file(tmp_path, straight):
     # data, never code: the header is JSON and the arrays load without pickle
     with np.load(path, allow_pickle=False) as z:
         assert json.loads(str(z["header"])) == {"format": "something else"}
+    # one written before its model's monitored contacts recorded their impulse
+    _interrupted(model, s0, path := tmp_path / "old.npz", 0.015)
+    ck = load_checkpoint(path)
+    del ck.frames["monitored_impulses"]
+    save_checkpoint(path, ck)
+    with pytest.raises(CheckpointError, match="old.npz: .*no monitored contact impulses"):
+        fp.simulate(model, T_END, dt_out=DT_OUT, state=s0, checkpoint=path)
     with pytest.raises(ValueError, match="checkpoint_interval_s must be >= 0"):
         fp.simulate(model, T_END, state=s0, checkpoint=path, checkpoint_interval_s=-1.0)

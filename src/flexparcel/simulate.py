@@ -22,6 +22,7 @@ from flexparcel.io.checkpoint import (
     CHECKPOINT_FORMAT,
     CHECKPOINT_VERSION,
     MONITORED_FRAME_KEY,
+    CheckpointError,
     RunCheckpoint,
     check_same_run,
     load_checkpoint,
@@ -354,8 +355,11 @@ def _run(model, s, t_end, dt_out, stepper, progress, checkpoint, interval, check
         s = stepper.begin(s)
         rec.record(s, stepper.monitored_impulse())
     else:
-        rec.extend(resumed.frames)
-        s = stepper.resume(resumed.state, resumed.history)
+        try:
+            rec.extend(resumed.frames)
+            s = stepper.resume(resumed.state, resumed.history)
+        except ValueError as exc:  # e.g. written before its monitored contacts were recorded
+            raise CheckpointError(f"checkpoint {checkpoint}: {exc}") from None
         wall_before = float(resumed.history.get("wall_total", 0.0))
         out_times = out_times[out_times > s.time + 1e-12 * max(1.0, abs(s.time))]
         if checkpoint_only:
