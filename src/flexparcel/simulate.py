@@ -113,7 +113,7 @@ class FrameRecorder:
         self.model = model
         self._t, self._x, self._r, self._v, self._e = [], [], [], [], []
         # impulses of the monitored contacts, or None where the model monitors none
-        self._imp = [] if any(cs.monitored for cs in model.contact_sets) else None
+        self._imp = [] if model.has_monitored_contact else None
 
     def record(self, st: State, impulse: np.ndarray | None = None) -> None:
         """Record ``st``; ``impulse``: the monitored contacts' impulse on each node so far

@@ -303,12 +303,17 @@ class GeneralizedAlpha:
         self._fc_prev = np.zeros((model.node_count, 3))
         # impulse [N s] of the monitored contact sets on every node since the start (None:
         # the model monitors no contact), their forces at the last accepted step's end and
-        # its algorithmic counterpart (see _monitor_step), and at the last converged trial
-        monitored = any(cs.monitored for cs in model.contact_sets)
-        self.monitored_impulse = np.zeros((model.node_count, 3)) if monitored else None
-        self._fmon = np.zeros((model.node_count, 3))
-        self._gmon = np.zeros((model.node_count, 3))
-        self._fmon_trial = None
+        # its algorithmic counterpart (see _monitor_step), and at the last converged trial;
+        # each monitored set's nodes (its forces act on no others)
+        self.monitored_impulse = self._fmon = self._gmon = self._fmon_trial = None
+        self._monitored_nodes = {}
+        if model.has_monitored_contact:
+            self.monitored_impulse = np.zeros((model.node_count, 3))
+            self._fmon = np.zeros((model.node_count, 3))
+            self._gmon = np.zeros((model.node_count, 3))
+            self._monitored_nodes = {
+                i: cs.nodes() for i, cs in enumerate(model.contact_sets) if cs.monitored
+            }
         mt = model.mass[:, :1]
         self._inv_mass = np.divide(1.0, mt, out=np.zeros_like(mt), where=mt > 0)
         self._h_now = self.opt.dt_initial
@@ -411,14 +416,15 @@ class GeneralizedAlpha:
         out = ContactOutput(np.zeros((self.model.node_count, 6)))
         monitor = monitor and self.monitored_impulse is not None
         fmon = np.zeros((self.model.node_count, 3)) if monitor else None
-        for cs in self.model.contact_sets:
-            if monitor and cs.monitored:
-                # the set's share, without changing the order the forces are summed in
-                before = out.forces[:, :3].copy()
+        for i, cs in enumerate(self.model.contact_sets):
+            nodes = self._monitored_nodes.get(i) if monitor else None
+            if nodes is None:
                 cs.evaluate(ctx, s, out)
-                fmon += out.forces[:, :3] - before
                 continue
+            # the set's share, on its own nodes, without changing the order of summation
+            before = out.forces[nodes, :3]
             cs.evaluate(ctx, s, out)
+            fmon[nodes] += out.forces[nodes, :3] - before
         if monitor:
             self._fmon_trial = fmon
         self.stats.wall_s["contact"] += _time.perf_counter() - t0

@@ -149,6 +149,11 @@ class Model:
         """Whether any contact set is defined."""
         return bool(self.contact_sets)
 
+    @property
+    def has_monitored_contact(self) -> bool:
+        """Whether any contact set is monitored (its impulse recorded by the integrator)."""
+        return any(cs.monitored for cs in self.contact_sets)
+
     def prescribed_motion(self, time: float) -> tuple[np.ndarray, np.ndarray]:
         """Velocities (p, 6) [m/s, rad/s] of the prescribed nodes at ``time`` [s] and the
         integral of their schedules S(t) (p,) [s] (see :class:`PrescribedMotion`)."""

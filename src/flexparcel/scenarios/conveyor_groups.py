@@ -541,8 +541,7 @@ class GroupStepper(Stepper):
         self.cur: State | None = None
         # the monitored (deflector) contacts' impulse on each consignment node; the
         # conveyor's own nodes are in every group's model and keep 0 here
-        monitored = any(cs.monitored for cs in model.contact_sets)
-        self.impulse = np.zeros((model.node_count, 3)) if monitored else None
+        self.impulse = np.zeros((model.node_count, 3)) if model.has_monitored_contact else None
         self._consignment_node = np.zeros(model.node_count, bool)
         self._consignment_node[np.concatenate(list(self.full_ids.values()))] = True
 

@@ -107,7 +107,6 @@ __all__ = [
     "load_scene_file",
     "belt_law",
     "build_conveyor_model",
-    "deflector_normal_forces",
     "deflector_mean_forces",
     "deflector_crossings",
     "deflector_edge_depths",
@@ -773,14 +772,6 @@ def _law_pressures(s, rate, law):
     return out
 
 
-def deflector_normal_forces(cm: ConveyorModel, result: SimulationResult) -> dict[str, np.ndarray]:
-    """Normal force [N] of all deflectors on each consignment at the recorded frames,
-    placement name -> shape (k,): :func:`deflector_node_forces` summed over the deflectors
-    and the consignment's packaging nodes."""
-    per_node = deflector_node_forces(cm, result).sum(axis=0)
-    return {name: per_node[:, c.packaging].sum(axis=1) for name, c in cm.consignments.items()}
-
-
 def deflector_mean_forces(
     cm: ConveyorModel, result: SimulationResult
 ) -> dict[str, np.ndarray] | None:
@@ -791,7 +782,7 @@ def deflector_mean_forces(
     (:attr:`~flexparcel.simulate.SimulationResult.monitored_impulses`; the deflector contacts
     are monitored), so it is the load a force gauge averaging over ``dt_out`` reads, whatever
     the contact's stiffness and the step sizes, where a sample at the frame
-    (:func:`deflector_normal_forces`) catches the contact law's spikes or misses them. None
+    (:func:`deflector_node_forces`) catches the contact law's spikes or misses them. None
     for a result without the record."""
     if result.monitored_impulses is None:
         return None
