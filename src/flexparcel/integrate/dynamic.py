@@ -95,7 +95,10 @@ class IntegratorOptions:
     10 % of its weight; with it by 4e-6 N, and the run took 483 s against 593 s. The
     default 0.1 m/s^2 (1 % of g) bounds a biased drift of a body to 5 cm/s per second; the
     per-DOF test keeps judging the local balance. A body with a held node (a clamped film)
-    is not tested: its reactions are unknown."""
+    is not tested: its reactions are unknown. Newton's last iteration (``max_newton``) is
+    judged without it: on the KP/BW vertical drop at 10 mm the glued edge's impact (line
+    contact switching on) could not meet it at any step, and the step fell below dt_min
+    at 0.2019 s."""
     max_newton: int = 12
     newton_cap_growth: float = 1.05
     """After a Newton failure at step h, steps are capped at 0.75 h; the cap then grows by
@@ -764,7 +767,11 @@ class GeneralizedAlpha:
                 1e-3 * tol, self._floor
             )
             if converged or settled:
-                done = self._finish_iterate(s0, s1, theta, h, t1, check_balance=not settled)
+                # the last iteration is judged without the momentum test (see
+                # IntegratorOptions.newton_momentum_tol): a contact kink it cannot meet
+                # must not cut the step down to dt_min
+                done = self._finish_iterate(s0, s1, theta, h, t1, check_balance=not settled,
+                                            momentum=it < self.opt.max_newton)  # fmt: skip
                 if done is not None:
                     self._rate_fresh = not accept_first
                     return (s1, *done, it)
@@ -801,7 +808,7 @@ class GeneralizedAlpha:
         np.add.at(net, self._body[keep], res[keep, :3])
         return bool((np.linalg.norm(net, axis=1) > tol * self._body_mass).any())
 
-    def _finish_iterate(self, s0, s1, theta, h, t1, check_balance: bool):
+    def _finish_iterate(self, s0, s1, theta, h, t1, check_balance: bool, momentum: bool = True):
         """Velocities, accelerations and contact forces of the iterate ``s1`` that passed
         Newton's correction test; with ``check_balance`` also its residual test
         (:meth:`_unbalanced`). Returns (qdd, a_alg), or None if the residual is out of balance
@@ -826,7 +833,7 @@ class GeneralizedAlpha:
             t_red = asm.reduction(m, s1.rotations)
             if t_red is not None:
                 r = t_red.T @ r
-            if self._unbalanced(r) or self._pushes_a_body(res):
+            if self._unbalanced(r) or (momentum and self._pushes_a_body(res)):
                 return None
         return qdd, a1
 
