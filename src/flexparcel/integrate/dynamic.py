@@ -96,9 +96,9 @@ class IntegratorOptions:
     default 0.1 m/s^2 (1 % of g) bounds a biased drift of a body to 5 cm/s per second; the
     per-DOF test keeps judging the local balance. A body with a held node (a clamped film)
     is not tested: its reactions are unknown. Newton's last iteration (``max_newton``) is
-    judged without it: on the KP/BW vertical drop at 10 mm the glued edge's impact (line
-    contact switching on) could not meet it at any step, and the step fell below dt_min
-    at 0.2019 s."""
+    judged without it, so that this test alone never cuts a step. Known open case: the KP/BW
+    vertical drop at 10 mm stops at the glued edge's impact (step below dt_min at 0.2019 s)
+    with this test on; whether it is the cause is not yet established."""
     max_newton: int = 12
     newton_cap_growth: float = 1.05
     """After a Newton failure at step h, steps are capped at 0.75 h; the cap then grows by
