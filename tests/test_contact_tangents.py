@@ -17,7 +17,8 @@ block is compared here, column by column, with the central difference
 * :func:`edge_edge_forces` (12 x 12: two crossing edges' four nodes, with the change of the
   closest points' weights; on the side it started and passed through);
 * the stick model of the box and face kernels (stick, slip at mu_d, slip in the STEP5 blend, a
-  new contact anchored at the step's start).
+  new contact anchored at the step's start) and of the edge-plane stations (a new spring, a
+  carried one, slip).
 
 States: in contact in the spring + STEP-damping branch, in the rebound branch
 ``F_N = R_df F_NC``, sliding (``|vt| > v_d``, ``mu = mu_d``), in the STEP5 friction blend
@@ -413,14 +414,21 @@ _T1 /= np.linalg.norm(_T1)  # the edge's direction, in the plane
 _T2 = np.cross(PLANE_N, _T1)
 
 
-def _edge_run(law, pos, vel):
+H_STEP = 1e-4  # the step [s] over which a stick spring is driven
+
+
+def _edge_run(law, pos, vel, pos0=None, u_el=None):
+    """Forces (6,), blocks and contact count of the edge (nodes 0, 1); the stick model's step
+    started at ``pos0`` (default: ``pos``) with elastic slips ``u_el`` (SAMPLES, 3)."""
     f = np.zeros((2, 6))
     ek = np.zeros((1, 6, 6))
     ec = np.zeros((1, 6, 6))
     dofs = np.zeros((1, 6), dtype=np.int64)
+    u_el = np.zeros((SAMPLES, 3)) if u_el is None else u_el
     nc = edge_plane_forces(
         np.array([[0, 1]]), PLANE_P, PLANE_N, BELT, R_EDGE, SAMPLES, law.packed(), ACT,
         np.array([STATION]), pos, vel, f, ek, ec, dofs, np.ones(2), 1e9, np.zeros(1),
+        u_el, np.zeros_like(u_el), H_STEP, pos if pos0 is None else pos0,
     )[0]  # fmt: skip
     assert list(dofs[0]) == [0, 1, 2, 6, 7, 8]
     return f[:, :3].ravel(), ek[0], ec[0], nc
@@ -504,6 +512,61 @@ def test_box_contact_rebound_without_rebound_factor_releases():
 K_T = CONTENT.stiffness  # stick stiffness [N/m^3]: the normal stiffness of CONTENT (per area)
 STICK = replace(CONTENT, stick_stiffness=K_T)
 BLEND_STICK = replace(BLEND, stick_stiffness=K_T)
+
+
+# the stick model on a plane's line contact: each station's spring, driven by its own
+# displacement over the step relative to the belt; margins as _stick_regime's
+EDGE_STICK_CASES = {
+    # name: (station displacements over the step relative to the belt at the two nodes [m],
+    #        carried elastic slip per station [m], expected regime)
+    "edge-stick-new": (((2e-6, 1e-6, 0.0), (1e-6, 2e-6, 0.0)), 0.0, "stick"),
+    "edge-stick-carried": (((2e-6, 1e-6, 0.0), (1e-6, 2e-6, 0.0)), 3e-6, "stick"),
+    "edge-slip": (((1e-4, 5e-5, 0.0), (8e-5, 6e-5, 0.0)), 0.0, "slip"),
+}
+
+
+def _edge_station_regimes(law, pos, vel, pos0, u_el):
+    """'stick' or 'slip' of each station (with margins, see _stick_regime)."""
+    p = law.packed()
+    out = set()
+    for m in range(SAMPLES):
+        xi = (m + 0.5) / SAMPLES
+        pt, pt0 = (1 - xi) * pos[0] + xi * pos[1], (1 - xi) * pos0[0] + xi * pos0[1]
+        s = R_EDGE - (pt - PLANE_P) @ PLANE_N
+        sdot = -(((1 - xi) * vel[0, :3] + xi * vel[1, :3] - BELT) @ PLANE_N)
+        f_n = normal_force_packed(s, sdot, p)[0]
+        a = u_el[m] + _edge_in_plane(pt - pt0 - BELT * H_STEP)
+        pull, limit = law.stick_stiffness * np.linalg.norm(a), law.mu_static * f_n
+        assert pull <= 0.8 * limit or pull >= 1.25 * limit
+        out.add("stick" if pull <= 0.8 * limit else "slip")
+    return out
+
+
+def edge_stick_errors(case):
+    moves, carried, regime = EDGE_STICK_CASES[case]
+    pos, vel = _edge_state((S, 0.6 * S), _TANGENT, (0.05, 0.03))
+    pos0 = pos - BELT * H_STEP - np.array([_edge_in_plane(v) for v in moves])
+    u_el = np.tile(carried * _T1, (SAMPLES, 1))
+    assert _edge_station_regimes(STICK, pos, vel, pos0, u_el) == {regime}
+    f, ek, ec, nc = _edge_run(STICK, pos, vel, pos0, u_el)
+    assert nc == SAMPLES
+    if regime == "stick":
+        # the in-plane force is the stations' springs, -k_t a each per area, to round-off
+        pulls = []
+        for m in range(SAMPLES):
+            xi = (m + 0.5) / SAMPLES
+            move = (1 - xi) * (pos[0] - pos0[0]) + xi * (pos[1] - pos0[1]) - BELT * H_STEP
+            pulls.append(u_el[m] + _edge_in_plane(move))
+        spring = -ACT * STATION * STICK.stick_stiffness * np.sum(pulls, axis=0)
+        total = _edge_in_plane(f[:3] + f[3:])
+        assert np.allclose(total, spring, rtol=1e-9, atol=1e-12 * np.abs(f).max())
+    dk, dc = _central_differences(lambda p, v: _edge_run(STICK, p, v, pos0, u_el)[0], pos, vel)
+    return _compare(ek, dk, RTOL), _compare(ec, dc, RTOL)
+
+
+@pytest.mark.parametrize("case", list(EDGE_STICK_CASES))
+def test_edge_plane_stick_tangents_match_finite_differences(case):
+    edge_stick_errors(case)
 
 
 def _stick_regime(law, force, n, a):

@@ -216,10 +216,11 @@ CONVEYOR_UNITS = {
 # the peak deflector force is the largest mean over an output interval, from the recorded
 # impulse, normal force and friction together; "4" took the largest normal-force sample;
 # swing "3", drops "3", conveyor "6": Newton's momentum test (IntegratorOptions.
-# newton_momentum_tol) ends steps only when no free body carries a net residual force)
+# newton_momentum_tol) ends steps only when no free body carries a net residual force;
+# drop-vertical "4": the glued edge's line contact on the plate has the stick model)
 for _f, _version, _responses, _units, _setup in (
     (swing, "3", ("first_swing_mm", "second_swing_mm"), TABLE3_UNITS, _SETUP),
-    (drop_vertical, "3", ("rebound_mm", "com_rise_mm"), TABLE3_UNITS, _SETUP),
+    (drop_vertical, "4", ("rebound_mm", "com_rise_mm"), TABLE3_UNITS, _SETUP),
     (drop_horizontal, "3", ("rebound_mm", "com_rise_mm"), TABLE3_UNITS, _SETUP),
     (conveyor, "6", (), CONVEYOR_UNITS, _CONVEYOR_SETUP),
 ):
