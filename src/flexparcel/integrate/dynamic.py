@@ -97,9 +97,10 @@ class IntegratorOptions:
     bench (a box rattling in its envelope) 118 s against 76 s. The default 0.1 m/s^2 (1 % of
     g) bounds a biased drift of a body to 5 cm/s per second; the per-DOF test keeps judging
     the local balance. A body with a held node (a clamped film) is not tested: its reactions
-    are unknown. Known open case: the KP/BW vertical drop at 10 mm stops at the glued edge's
-    impact (step below dt_min at 0.2019 s) with this test on; whether it is the cause is
-    not yet established."""
+    are unknown. The test also finds contact laws Newton cannot settle: the KP/BW vertical
+    drop at 10 mm stopped at its glued edge's impact (2-30 N of net residual on the envelope)
+    until that edge's line contact got the stick model instead of the regularised friction's
+    1 mm/s sigmoid (:mod:`flexparcel.contact.edges`)."""
     max_newton: int = 12
     newton_cap_growth: float = 1.05
     """After a Newton failure at step h, steps are capped at 0.75 h; the cap then grows by
