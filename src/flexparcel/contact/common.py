@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["StickAnchors", "AnchoredHistory", "pair_blocks", "check_history"]
+__all__ = ["StickAnchors", "AnchoredHistory", "ElasticSlipHistory", "pair_blocks", "check_history"]
 
 
 class StickAnchors:
@@ -50,6 +50,32 @@ class AnchoredHistory:
 
     def restore_history(self, history) -> None:
         self.anchors.restore(history)
+
+
+class ElasticSlipHistory:
+    """Mixin of a contact set on a rigid plane whose stick model carries an elastic slip
+    ``u_el`` (rows, 3) [m] per contact point (node points, edge stations): the kernels read
+    the committed ``u_el`` of the last accepted step and write each evaluation's into
+    ``u_el_trial``."""
+
+    u_el: np.ndarray
+    u_el_trial: np.ndarray
+
+    def _init_elastic_slip(self, rows: int) -> None:
+        self.u_el = np.zeros((rows, 3))
+        self.u_el_trial = self.u_el.copy()
+
+    def begin_step(self) -> None:
+        self.u_el_trial = np.zeros_like(self.u_el)  # points out of contact lose their spring
+
+    def commit(self) -> None:
+        self.u_el = self.u_el_trial.copy()
+
+    def history(self) -> dict[str, np.ndarray]:
+        return {"u_el": self.u_el}
+
+    def restore_history(self, history) -> None:
+        self.u_el = check_history(history, "u_el", self.u_el)
 
 
 def check_history(history: dict[str, np.ndarray], key: str, like: np.ndarray) -> np.ndarray:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from flexparcel.contact.common import check_history, pair_blocks
+from flexparcel.contact.common import ElasticSlipHistory, pair_blocks
 from flexparcel.contact.law import (
     P_K_T,
     P_MAX_PEN,
@@ -129,7 +129,7 @@ def edge_plane_forces(
     return n_contact, deepest, worst
 
 
-class EdgePlaneSet(ContactSet):
+class EdgePlaneSet(ElasticSlipHistory, ContactSet):
     """Line contact of shell edges (E, 2) against one rigid plane, each edge sampled at
     ``samples`` stations (an envelope standing on its glued border); ``station_areas`` (E,):
     the area [m^2] each station of an edge carries (reference length / samples x strip width,
@@ -150,8 +150,7 @@ class EdgePlaneSet(ContactSet):
         self.plane = int(plane)
         self.radius = float(radius)
         self.samples = int(samples)
-        self.u_el = np.zeros((self.edges.shape[0] * self.samples, 3))
-        self.u_el_trial = self.u_el.copy()
+        self._init_elastic_slip(self.edges.shape[0] * self.samples)
 
     def evaluate(self, ctx, state, out) -> None:
         m, k = ctx.model, self.plane
@@ -165,18 +164,6 @@ class EdgePlaneSet(ContactSet):
         )  # fmt: skip
         out.coupled_blocks.append((ek, ec, dofs))
         out.merge(n_contact, depth, ratio)
-
-    def begin_step(self) -> None:
-        self.u_el_trial = np.zeros_like(self.u_el)  # stations out of contact lose their spring
-
-    def commit(self) -> None:
-        self.u_el = self.u_el_trial.copy()
-
-    def history(self) -> dict[str, np.ndarray]:
-        return {"u_el": self.u_el}
-
-    def restore_history(self, history) -> None:
-        self.u_el = check_history(history, "u_el", self.u_el)
 
     def history_rows(self, numbering) -> np.ndarray:
         station = np.tile(np.arange(self.samples), self.edges.shape[0])

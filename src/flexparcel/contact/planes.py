@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from flexparcel.contact.common import check_history
+from flexparcel.contact.common import ElasticSlipHistory
 from flexparcel.contact.law import (
     P_K_T,
     P_MAX_PEN,
@@ -299,7 +299,7 @@ def plane_contact_forces(
     return n_contact, deepest, deepest_pt, worst_ratio
 
 
-class PlanePointSet(ContactSet):
+class PlanePointSet(ElasticSlipHistory, ContactSet):
     """Contact points on one rigid plane: shell nodes with a contact radius, or the corners of
     a rigid body's rounded box (their offsets in the body frame, the edge radius as radius).
 
@@ -325,8 +325,7 @@ class PlanePointSet(ContactSet):
         # the kernel's per-point plane and law rows; constant, so built once, not per call
         self._plane_of = np.full(self.node.size, self.plane, dtype=np.int64)
         self._law_of = np.zeros(self.node.size, np.int64)
-        self.u_el = np.zeros((self.node.size, 3))
-        self.u_el_trial = self.u_el.copy()
+        self._init_elastic_slip(self.node.size)
 
     def evaluate(self, ctx, state, out) -> None:
         m = ctx.model
@@ -344,18 +343,6 @@ class PlanePointSet(ContactSet):
         )  # fmt: skip
         out.node_blocks.append((self.node, dq, dv))
         out.merge(n_contact, depth, ratio, int(self.node[point]) if point >= 0 else -1)
-
-    def begin_step(self) -> None:
-        self.u_el_trial = np.zeros_like(self.u_el)  # points out of contact lose their spring
-
-    def commit(self) -> None:
-        self.u_el = self.u_el_trial.copy()
-
-    def history(self) -> dict[str, np.ndarray]:
-        return {"u_el": self.u_el}
-
-    def restore_history(self, history) -> None:
-        self.u_el = check_history(history, "u_el", self.u_el)
 
     def history_rows(self, numbering) -> np.ndarray:
         cols = np.column_stack([numbering[self.node], np.full(self.node.size, self.plane),
