@@ -22,7 +22,8 @@ T_END, DT_OUT = 0.06, 0.01
 
 def _scene(friction: float = 0.3):
     """Every kind of step history at once: a shell sheet on the belt (plane contact with the
-    stick model: the plane springs u_el), a smaller sheet dropped on it (face contact with
+    stick model: the plane springs u_el, per node and per station of its border's line
+    contact), a smaller sheet dropped on it (face contact with
     stick anchors; it starts in touch), a rigid box on the belt, and the step controller.
     Everything starts at belt speed. Returns the model and its initial state."""
     b = fp.ModelBuilder(gravity=(0.0, 0.0, -9.81))
@@ -35,6 +36,9 @@ def _scene(friction: float = 0.3):
     pts, quads = fp.mesh.rectangle(0.04, 0.04, 2, 2, origin=(0.21, -0.02, 1.5 * SHEET_T - 1e-6))
     upper = b.add_shell_mesh(pts, quads, material=mat)
     b.add_contact(lower, parts.belt_plane, law, radius=SHEET_T / 2)
+    # line contact takes half-spaces only: the belt's top as one, running with it
+    top = b.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), (parts.scene.belt_speed, 0.0, 0.0))
+    b.add_edge_contact(lower, top, law, radius=SHEET_T / 2)
     with b.monitored_contacts():  # its impulse record resumes too
         b.add_face_contact(upper, lower, law, thickness=SHEET_T)
     box = b.add_rigid_body(RoundedBox(0.1, 0.08, 0.04, 0.004, mass=0.3), (0.3, 0.3, 0.0205))
@@ -95,6 +99,10 @@ def test_interrupted_run_resumes_exactly(straight, tmp_path):
     # (each contact set's arrays under "contact.<set key>.<name>")
     hist = part.history
     springs = [v for k, v in hist.items() if k.startswith("contact.plane") and k.endswith(".u_el")]
+    stations = [
+        v for k, v in hist.items() if k.startswith("contact.edge_plane") and k.endswith(".u_el")
+    ]
+    assert stations and max(np.abs(u).max() for u in stations) > 0.0
     anchors = [
         v for k, v in hist.items() if k.startswith("contact.node_face") and k.endswith(".has")
     ]
