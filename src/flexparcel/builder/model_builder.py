@@ -506,7 +506,8 @@ class ModelBuilder:
         glued border of an envelope standing on it) against plane ``plane``; each edge is
         sampled at ``samples`` stations (see :mod:`flexparcel.contact.edges`). Per unit
         length: the per-area law times the strip ``width`` [m] (default 10 mm, the paper's node
-        spacing), each station its edge's reference length / samples."""
+        spacing), each station its edge's reference length / samples. With a stick model in
+        the law each station keeps its own stick spring, as a node on a plane does."""
         if not (isinstance(plane, int | np.integer) and 0 <= plane < len(self._planes)):
             raise ValueError(
                 f"add_edge_contact: unknown plane {plane!r}; planes are 0..{len(self._planes) - 1}"
