@@ -1,6 +1,7 @@
 """What the swing and drop scenarios share: one consignment from its snapshot, the paper's
-Table 3 parameters (paper units, defaults: the packaging's own modulus and damping ratio and
-Table 6's contact values), and the files a user opens.
+Table 3 parameters and the packaging's friction coefficient (paper units, defaults: the
+packaging's own modulus and damping ratio, Table 6's contact values and friction 0.3), and the
+files a user opens.
 
 Files of a run (in ``out_dir``): ``responses.json``, ``results.npz`` (with the scene's
 ``parts`` in its metadata, :func:`flexparcel.io.paraview.scene_parts`),
@@ -31,7 +32,12 @@ from flexparcel.scenarios.base import (
     single_snapshot,
     write_json,
 )
-from flexparcel.scenarios.consignment_tests import TABLE3, TABLE6_VALUES, TestModel, TestRun
+from flexparcel.scenarios.consignment_tests import (
+    TABLE6_VALUES,
+    TEST_PARAMETERS,
+    TestModel,
+    TestRun,
+)
 
 if TYPE_CHECKING:
     from flexparcel.consignments.build import ConsignmentBuild
@@ -97,7 +103,7 @@ class ConsignmentTest(ScenarioBase):
     """Base of a test on one consignment. Subclasses set :attr:`name`, :attr:`t_end`,
     :attr:`dt_out` and implement :meth:`build`, :meth:`_test_run` and :meth:`responses`."""
 
-    parameters = TABLE3
+    parameters = TEST_PARAMETERS
     t_end: float = 1.0
     """Default simulated time [s]."""
     dt_out: float = 0.01

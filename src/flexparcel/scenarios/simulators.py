@@ -196,6 +196,8 @@ TABLE3_UNITS = {
     "contact_stiffness_packaging_ground": "N/mm",
     "contact_damping_packaging_ground": "Ns/mm",
 }
+# and the packaging's friction coefficient (consignment_tests.PACKAGING_FRICTION)
+TEST_UNITS = {**TABLE3_UNITS, "friction_packaging": "-"}
 CONVEYOR_UNITS = {
     "belt_speed": "m/s",
     "deflector_angle": "deg",
@@ -219,9 +221,9 @@ CONVEYOR_UNITS = {
 # newton_momentum_tol) ends steps only when no free body carries a net residual force;
 # drop-vertical "4": the glued edge's line contact on the plate has the stick model)
 for _f, _version, _responses, _units, _setup in (
-    (swing, "3", ("first_swing_mm", "second_swing_mm"), TABLE3_UNITS, _SETUP),
-    (drop_vertical, "4", ("rebound_mm", "com_rise_mm"), TABLE3_UNITS, _SETUP),
-    (drop_horizontal, "3", ("rebound_mm", "com_rise_mm"), TABLE3_UNITS, _SETUP),
+    (swing, "3", ("first_swing_mm", "second_swing_mm"), TEST_UNITS, _SETUP),
+    (drop_vertical, "4", ("rebound_mm", "com_rise_mm"), TEST_UNITS, _SETUP),
+    (drop_horizontal, "3", ("rebound_mm", "com_rise_mm"), TEST_UNITS, _SETUP),
     (conveyor, "6", (), CONVEYOR_UNITS, _CONVEYOR_SETUP),
 ):
     _f.simulator_version = _version
