@@ -55,7 +55,6 @@ __all__ = [
     "TABLE6_VALUES",
     "PACKAGING_FRICTION",
     "TEST_PARAMETERS",
-    "TEST_PARAMETER_UNITS",
     "TestRun",
     "TestModel",
     "parse_assignments",
@@ -116,10 +115,9 @@ JAWS = JawClosing()
 """The swing clamp's default jaw closing (:class:`~flexparcel.scenarios.swing_jaws.JawClosing`)."""
 
 S_MAX_MM = 0.1  # STEP damping ramp of all pairs [mm] (the paper does not print its value)
-FRICTION_PACKAGING = 0.3  # packaging-content and packaging-plate (not given in the paper)
 
 PACKAGING_FRICTION = Parameter(
-    "friction_packaging", "-", FRICTION_PACKAGING, 0.0, 2.0,
+    "friction_packaging", "-", 0.3, 0.0, 2.0,
     "Coulomb friction coefficient (static = dynamic) of packaging to content and packaging "
     "to ground plate; the paper does not give it (default 0.3, uncalibrated)",
 )  # fmt: skip
@@ -129,9 +127,6 @@ print it, and it decides the vertical drop's rebound (KP/BW at 10 mm, Table 6: 0
 
 TEST_PARAMETERS: tuple[Parameter, ...] = (*TABLE3, PACKAGING_FRICTION)
 """What the swing and drop tests take: Table 3's six and :data:`PACKAGING_FRICTION`."""
-
-TEST_PARAMETER_UNITS: dict[str, str] = {p.name: p.unit for p in TEST_PARAMETERS}
-"""Name -> unit of each of :data:`TEST_PARAMETERS`."""
 
 
 def parse_assignments(items: Sequence[str] | Mapping[str, float] | None) -> dict[str, float]:
@@ -144,7 +139,7 @@ def parse_assignments(items: Sequence[str] | Mapping[str, float] | None) -> dict
 def _laws(p: Mapping[str, float], stick_model: bool) -> tuple[ContactLaw, ContactLaw]:
     # Table 6's values are RecurDyn's per-point values of the paper's 10 mm nodes: per unit
     # area they are divided by (10 mm)^2 (the law is per area, see flexparcel.contact.law)
-    mu = p.get(PACKAGING_FRICTION.name, FRICTION_PACKAGING)
+    mu = p.get(PACKAGING_FRICTION.name, PACKAGING_FRICTION.default)
     content = ContactLaw.from_paper_units(
         c_N_per_mm=p["contact_stiffness_packaging_content"],
         d_Ns_per_mm=p["contact_damping_packaging_content"],
@@ -186,7 +181,9 @@ class TestRun:
             "simulated_s": float(self.result.time[-1] - self.result.time[0]),
             "wall_s": float(self.wall_s),
             "parameters": dict(self.parameters),
-            "parameter_units": {k: TEST_PARAMETER_UNITS[k] for k in self.parameters},
+            "parameter_units": {
+                q.name: q.unit for q in TEST_PARAMETERS if q.name in self.parameters
+            },
             "steps": int(self.result.stats.get("steps", 0)),
             "newton_iterations": int(self.result.stats.get("newton_iterations", 0)),
         }
