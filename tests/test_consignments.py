@@ -330,35 +330,43 @@ def test_swing_start_is_deterministic(small):
     assert 0.05e-3 < drop < 0.5 * 9.81 * 0.02**2
 
 
-def test_packaging_friction_parameter_sets_both_packaging_laws(small):
-    # friction_packaging (not in the paper's Table 3; default 0.3) must reach the packaging-
-    # content law and the packaging-plate law, node and edge contact alike, and change nothing
-    # else: the vertical drop's rebound depends on it (docs/scenarios.md)
+def test_packaging_friction_parameters_set_their_own_laws(small):
+    # friction_packaging_content and friction_packaging_ground (not in the paper's Table 3;
+    # default 0.3) must each reach their own law, node and edge contact alike, and change
+    # nothing else: the vertical drop's rebound depends on them (docs/scenarios.md)
     from flexparcel.contact.law import P_MU_D, P_MU_S
     from flexparcel.scenarios.consignment_tests import drop_model, parse_assignments
 
-    assert parse_assignments(None)["friction_packaging"] == 0.3
-    with pytest.raises(ValueError, match=r"friction_packaging must be in \[0, 2\] -, got 2.5"):
-        parse_assignments(["friction_packaging=2.5"])
-    a = drop_model(small, "vertical", parse_assignments(None)).model
-    b = drop_model(small, "vertical", parse_assignments(["friction_packaging=0.1"])).model
-    la, lb = a.contact_laws, b.contact_laws
-    assert la.shape == lb.shape
-    changed = np.flatnonzero(la[:, P_MU_S] != lb[:, P_MU_S])
-    # the content law and the ground law (the plate's node and edge contact share it)
-    assert changed.size >= 2
-    for col in (P_MU_S, P_MU_D):
-        assert np.all(la[changed, col] == 0.3) and np.all(lb[changed, col] == 0.1)
-    rest = np.ones(la.shape[1], bool)
-    rest[[P_MU_S, P_MU_D]] = False
-    np.testing.assert_array_equal(la[:, rest], lb[:, rest])
-    # every packaging contact uses a changed law: the film on the box (node-box), on the plate
-    # (plane points) and the glued edge's line contact on the plate (edge-plane)
+    p0 = parse_assignments(None)
+    assert p0["friction_packaging_content"] == p0["friction_packaging_ground"] == 0.3
+    refused = r"friction_packaging_ground must be in \[0, 2\] -, got 2.5"
+    with pytest.raises(ValueError, match=refused):
+        parse_assignments(["friction_packaging_ground=2.5"])
+    a = drop_model(small, "vertical", p0).model
+    changed = {}
+    for name, mu in (("content", 0.1), ("ground", 0.2)):
+        b = drop_model(small, "vertical", parse_assignments([f"friction_packaging_{name}={mu}"]))
+        la, lb = a.contact_laws, b.model.contact_laws
+        assert la.shape == lb.shape
+        rows = np.flatnonzero(la[:, P_MU_S] != lb[:, P_MU_S])
+        assert rows.size >= 1, name
+        for col in (P_MU_S, P_MU_D):
+            assert np.all(la[rows, col] == 0.3) and np.all(lb[rows, col] == mu), name
+        rest = np.ones(la.shape[1], bool)
+        rest[[P_MU_S, P_MU_D]] = False
+        np.testing.assert_array_equal(la[:, rest], lb[:, rest])
+        changed[name] = set(rows.tolist())
+    # two different laws: the film on the box (node-box) takes the content friction; the film
+    # on the plate (plane points) and the glued edge's line contact on it (edge-plane) the
+    # ground friction
+    assert not changed["content"] & changed["ground"]
     by_kind = {}
-    for cs in b.contact_sets:
+    for cs in a.contact_sets:
         by_kind.setdefault(type(cs).__name__, set()).add(cs.law_index)
-    for kind in ("NodeBoxSet", "PlanePointSet", "EdgePlaneSet"):
-        assert by_kind[kind] & set(changed.tolist()), kind
+    assert by_kind["NodeBoxSet"] & changed["content"]
+    assert not by_kind["NodeBoxSet"] & changed["ground"]
+    for kind in ("PlanePointSet", "EdgePlaneSet"):
+        assert by_kind[kind] & changed["ground"], kind
 
 
 def test_jaws_close_the_clamp_flat_and_leave_the_consignment_at_rest(small):

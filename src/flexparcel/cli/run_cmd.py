@@ -73,8 +73,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="a parameter of the paper's Table 3 in its units, e.g. youngs_modulus=926 (MPa), "
         "damping_ratio=1.71e-3 (s), contact_stiffness_packaging_content=649 (N/mm), "
         "contact_damping_packaging_content=0.579 (Ns/mm), contact_stiffness_packaging_ground, "
-        "contact_damping_packaging_ground, or friction_packaging=0.3 (packaging-content and "
-        "packaging-plate friction coefficient, not in the paper); repeatable",
+        "contact_damping_packaging_ground, friction_packaging_content=0.3 or "
+        "friction_packaging_ground=0.3 (friction coefficients, not in the paper); repeatable",
     )
     p.add_argument("--t-end", type=float, default=None, metavar="S",
                    help="simulated time [s] (default 1.4 swing, 0.3 drops)")  # fmt: skip

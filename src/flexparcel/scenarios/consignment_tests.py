@@ -53,6 +53,8 @@ __all__ = [
     "TABLE3_PARAMETERS",
     "TABLE3",
     "TABLE6_VALUES",
+    "FRICTION_PACKAGING_CONTENT",
+    "FRICTION_PACKAGING_GROUND",
     "PACKAGING_FRICTION",
     "TEST_PARAMETERS",
     "TestRun",
@@ -116,21 +118,28 @@ JAWS = JawClosing()
 
 S_MAX_MM = 0.1  # STEP damping ramp of all pairs [mm] (the paper does not print its value)
 
-PACKAGING_FRICTION = Parameter(
-    "friction_packaging", "-", 0.3, 0.0, 2.0,
-    "Coulomb friction coefficient (static = dynamic) of packaging to content and packaging "
-    "to ground plate; the paper does not give it (default 0.3, uncalibrated)",
+FRICTION_PACKAGING_CONTENT = Parameter(
+    "friction_packaging_content", "-", 0.3, 0.0, 2.0,
+    "Coulomb friction coefficient (static = dynamic), packaging to content; the paper does "
+    "not give it (default 0.3, uncalibrated)",
 )  # fmt: skip
-"""The packaging's friction coefficient, a parameter beside Table 3's: the paper does not
-print it, and it decides the vertical drop's rebound (KP/BW at 10 mm, Table 6: 0.0 mm with
-0.3, 4.72 mm with 0.1; docs/scenarios.md), so a calibration must be able to set it."""
+FRICTION_PACKAGING_GROUND = Parameter(
+    "friction_packaging_ground", "-", 0.3, 0.0, 2.0,
+    "Coulomb friction coefficient (static = dynamic), packaging to ground plate (a metal "
+    "sheet); the paper does not give it for the tests (default 0.3, uncalibrated)",
+)  # fmt: skip
+PACKAGING_FRICTION: tuple[Parameter, ...] = (FRICTION_PACKAGING_CONTENT, FRICTION_PACKAGING_GROUND)
+"""The packaging's two friction coefficients, parameters beside Table 3's, named like its
+contact pairs: the paper does not print them, and they decide the vertical drop's rebound
+(KP/BW at 10 mm, Table 6: 0.0 mm with 0.3 for both, 4.72 mm with 0.1 for both;
+docs/scenarios.md), so a calibration must be able to set them."""
 
-TEST_PARAMETERS: tuple[Parameter, ...] = (*TABLE3, PACKAGING_FRICTION)
-"""What the swing and drop tests take: Table 3's six and :data:`PACKAGING_FRICTION`."""
+TEST_PARAMETERS: tuple[Parameter, ...] = (*TABLE3, *PACKAGING_FRICTION)
+"""What the swing and drop tests take: Table 3's six and the two of :data:`PACKAGING_FRICTION`."""
 
 
 def parse_assignments(items: Sequence[str] | Mapping[str, float] | None) -> dict[str, float]:
-    """Table 6 values and the default packaging friction, overridden by ``name=value``
+    """Table 6 values and the default packaging frictions, overridden by ``name=value``
     strings (or a mapping), paper units. Unknown names and values out of range raise
     ``ValueError`` naming them."""
     return resolve_parameters(TEST_PARAMETERS, items)  # type: ignore[return-value]
@@ -139,16 +148,17 @@ def parse_assignments(items: Sequence[str] | Mapping[str, float] | None) -> dict
 def _laws(p: Mapping[str, float], stick_model: bool) -> tuple[ContactLaw, ContactLaw]:
     # Table 6's values are RecurDyn's per-point values of the paper's 10 mm nodes: per unit
     # area they are divided by (10 mm)^2 (the law is per area, see flexparcel.contact.law)
-    mu = p.get(PACKAGING_FRICTION.name, PACKAGING_FRICTION.default)
+    mu_c = p.get(FRICTION_PACKAGING_CONTENT.name, FRICTION_PACKAGING_CONTENT.default)
+    mu_g = p.get(FRICTION_PACKAGING_GROUND.name, FRICTION_PACKAGING_GROUND.default)
     content = ContactLaw.from_paper_units(
         c_N_per_mm=p["contact_stiffness_packaging_content"],
         d_Ns_per_mm=p["contact_damping_packaging_content"],
-        s_max_mm=S_MAX_MM, mu_static=mu, mu_dynamic=mu, reference_spacing_mm=10.0,
+        s_max_mm=S_MAX_MM, mu_static=mu_c, mu_dynamic=mu_c, reference_spacing_mm=10.0,
     )  # fmt: skip
     ground = ContactLaw.from_paper_units(
         c_N_per_mm=p["contact_stiffness_packaging_ground"],
         d_Ns_per_mm=p["contact_damping_packaging_ground"],
-        s_max_mm=S_MAX_MM, mu_static=mu, mu_dynamic=mu, reference_spacing_mm=10.0,
+        s_max_mm=S_MAX_MM, mu_static=mu_g, mu_dynamic=mu_g, reference_spacing_mm=10.0,
     )  # fmt: skip
     if stick_model:
         return content.with_stick_model(), ground.with_stick_model()

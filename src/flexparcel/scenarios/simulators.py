@@ -196,8 +196,8 @@ TABLE3_UNITS = {
     "contact_stiffness_packaging_ground": "N/mm",
     "contact_damping_packaging_ground": "Ns/mm",
 }
-# and the packaging's friction coefficient (consignment_tests.PACKAGING_FRICTION)
-TEST_UNITS = {**TABLE3_UNITS, "friction_packaging": "-"}
+# and the packaging's two friction coefficients (consignment_tests.PACKAGING_FRICTION)
+TEST_UNITS = {**TABLE3_UNITS, "friction_packaging_content": "-", "friction_packaging_ground": "-"}
 CONVEYOR_UNITS = {
     "belt_speed": "m/s",
     "deflector_angle": "deg",
