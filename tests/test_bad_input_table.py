@@ -214,6 +214,10 @@ CASES: list[Case] = [
          r"1\.17\), got -1\.0",
          _cli_case(lambda tmp: ["run", "swing", "--consignment", "KPBW", "--air-drag", "-1",
                                 "--out", str(tmp / "out")], C), 2),  # fmt: skip
+    Case("`flexparcel run swing --hold` (the hold is the vertical drop's)",
+         r"run: error: --hold applies to drop-vertical only, not swing",
+         _cli_case(lambda tmp: ["run", "swing", "--consignment", "KPBW", "--hold",
+                                "--out", str(tmp / "out")], C), 2),  # fmt: skip
     Case("a consignment file that is not valid TOML",
          r"assemble: error: .*bag\.toml: not valid TOML", _cli_case(_bad_toml, C), 2),
     Case("`--scene FILE.toml` that is not valid TOML",

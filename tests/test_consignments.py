@@ -369,6 +369,36 @@ def test_packaging_friction_parameters_set_their_own_laws(small):
         assert by_kind[kind] & changed["ground"], kind
 
 
+def test_vertical_drop_hold_leaves_the_consignment_at_rest_at_the_drop_height(small):
+    # the optional hold (flexparcel.scenarios.holding): on end, gravity on, the top 20 mm held
+    # for 0.2 s, then at rest and moved down to the drop height. Gravity may let the content
+    # sink in its pouch (KP/BW at 25 mm: 0.01 mm, held by the film wrapped round it), and the
+    # held nodes keep their shape
+    from flexparcel.scenarios.consignment_tests import drop_model, parse_assignments
+    from flexparcel.scenarios.holding import DropHold
+
+    p = parse_assignments(None)
+    free = drop_model(small, "vertical", p, drop_height=0.05)
+    held = drop_model(small, "vertical", p, drop_height=0.05, hold=DropHold())
+    c, s0, s1 = held.consignment, free.state0, held.state0
+    rec = held.preparation["hold"]
+    assert rec["steps"] > 0 and rec["kinetic_end_j"] < 1e-9
+    assert np.all(s1.velocities == 0.0) and s1.time == 0.0
+    z = s1.positions[c.packaging, 2]
+    assert z.min() == pytest.approx(s0.positions[c.packaging, 2].min(), abs=1e-12)
+    x = small.positions[c.packaging, 0]
+    top = c.packaging[x <= x.min() + DropHold().held_length + 1e-9]
+    shift = s1.positions[top] - s0.positions[top]
+    np.testing.assert_allclose(shift - shift[0], 0.0, atol=1e-12)
+    # the content below the held end: it may sink (by less than a mm), not rise by more than
+    # the integrator's noise (measured +0.5 um; its error tolerance is 0.1 mm)
+    rel0 = s0.positions[c.content_nodes, 2].mean() - s0.positions[top, 2].mean()
+    rel1 = s1.positions[c.content_nodes, 2].mean() - s1.positions[top, 2].mean()
+    assert -1e-3 < rel1 - rel0 < 1e-5
+    with pytest.raises(ValueError, match=r"DropHold.hold_time must be in \(0, 2\]"):
+        DropHold(hold_time=0.0)
+
+
 def test_jaws_close_the_clamp_flat_and_leave_the_consignment_at_rest(small):
     # the paper's clamp presses both layers together over 2 cm; the settled envelope has them
     # apart there, so the swing closes the clamp as flat jaws before the release

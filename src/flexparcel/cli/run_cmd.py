@@ -80,6 +80,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="simulated time [s] (default 1.4 swing, 0.3 drops)")  # fmt: skip
     p.add_argument("--element-size", type=float, default=None, metavar="MM",
                    help="shell edge length [mm] (must match --snapshot's)")  # fmt: skip
+    p.add_argument("--hold", action="store_true",
+                   help="drop-vertical: hold the consignment by its top 20 mm under gravity "
+                   "for 0.2 s before the release, instead of releasing the snapshot as "
+                   "assembled (without gravity); see docs/scenarios.md")  # fmt: skip
     p.add_argument("--air-drag", type=float, default=None, metavar="CD",
                    help="swing and drops: drag coefficient of the envelope in still air "
                    "(a flat plate: 1.17); default none, as the paper's model")  # fmt: skip
@@ -199,8 +203,16 @@ def run(args: argparse.Namespace) -> int:
     if args.test == "conveyor":
         if args.air_drag is not None:
             raise ValueError("--air-drag applies to the swing and the drops, not the conveyor")
+        if args.hold:
+            raise ValueError("--hold applies to drop-vertical only, not conveyor")
         return _run_conveyor(args)
     options = {} if args.air_drag is None else {"air_drag": args.air_drag}
+    if args.hold:
+        if args.test != "drop-vertical":
+            raise ValueError(f"--hold applies to drop-vertical only, not {args.test}")
+        from flexparcel.scenarios.holding import DropHold
+
+        options["hold"] = DropHold()
     # an unknown name fails here, listing the known ones
     scenario = get_scenario(args.test, **options)
     given = [k for k in _CONVEYOR_ONLY if getattr(args, k, None) is not None]

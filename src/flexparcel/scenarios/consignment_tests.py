@@ -46,6 +46,7 @@ from flexparcel.contact.law import ContactLaw
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.model.model import Model, State
 from flexparcel.scenarios.base import Parameter, resolve_parameters
+from flexparcel.scenarios.holding import DropHold, hold_at_rest
 from flexparcel.scenarios.swing_jaws import JawClosing, close_jaws
 from flexparcel.simulate import SimulationResult, simulate
 
@@ -180,6 +181,9 @@ class TestRun:
     wall_s: float
     notes: dict[str, str] = field(default_factory=dict)
     """Why a response is None, by response name."""
+    preparation: dict = field(default_factory=dict)
+    """:attr:`TestModel.preparation` of the run (jaw closing, hold); its wall time is in
+    ``wall_s``."""
 
     def summary(self) -> dict:
         """``responses.json`` content: responses, ``simulated_s``, ``wall_s``, parameters."""
@@ -194,6 +198,9 @@ class TestRun:
             "parameter_units": {
                 q.name: q.unit for q in TEST_PARAMETERS if q.name in self.parameters
             },
+            "preparation": {
+                k: {n: float(v) for n, v in r.items()} for k, r in self.preparation.items()
+            },  # fmt: skip
             "steps": int(self.result.stats.get("steps", 0)),
             "newton_iterations": int(self.result.stats.get("newton_iterations", 0)),
         }
@@ -271,8 +278,9 @@ class TestModel:
     reference: float
     """Swing: x of the clamp edge [m]; drop: contact radius of the first touch [m]."""
     preparation: dict = field(default_factory=dict)
-    """What was done to the snapshot before the start (the swing's jaw closing: steps,
-    wall time [s], kinetic energy [J] when its hold ended); empty if nothing."""
+    """What was done to the snapshot before the start (the swing's ``jaw_closing``, the
+    vertical drop's ``hold``: steps, wall time [s], kinetic energy [J] when it ended); empty
+    if nothing."""
 
 
 def swing_model(
@@ -334,7 +342,8 @@ def swing_test(
     first, second = swing_peaks(free_end - tm.reference)
     responses = {"first_swing_mm": _mm(first), "second_swing_mm": _mm(second)}
     notes = {k: SWING_NOT_REACHED[k] for k, v in responses.items() if v is None}
-    return TestRun("swing", res, responses, p, tm.model, tm.consignment, wall, notes)
+    return TestRun("swing", res, responses, p, tm.model, tm.consignment, wall, notes,
+                   tm.preparation)  # fmt: skip
 
 
 def _mm(value_m: float | None) -> float | None:
@@ -366,6 +375,10 @@ def swing_peaks(x_rel: np.ndarray) -> tuple[float | None, float | None]:
     return first, second
 
 
+_VERTICAL = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+# the vertical drop's rotation of the snapshot: +90 deg about y (x -> -z), its +x edge down
+
+
 def drop_model(
     snapshot: Snapshot,
     orientation: str,
@@ -374,27 +387,44 @@ def drop_model(
     drop_height: float = 0.200,
     stick_model: bool = True,
     air_drag: float = 0.0,
+    hold: DropHold | None = None,
 ) -> TestModel:
     """The drop test's model: the consignment at rest with its lowest point ``drop_height``
     [m] above a rigid plate (z = 0), lying flat ("horizontal") or standing on its +x edge
     ("vertical", KP/BW's glued strip, with a line contact of that edge against the plate);
-    ``parameters`` in paper units; ``air_drag`` as for :func:`swing_model`."""
+    ``parameters`` in paper units; ``air_drag`` as for :func:`swing_model`. ``hold``: start
+    the vertical drop from the consignment held at rest by its top end under gravity
+    (:mod:`flexparcel.scenarios.holding`); None (the default) from the snapshot as assembled,
+    without gravity. The horizontal drop holds nothing."""
     if orientation not in ("horizontal", "vertical"):
         raise ValueError(f"orientation must be 'horizontal' or 'vertical', got {orientation!r}")
-    b, c = _builder(snapshot, parameters, stick_model, air_drag=air_drag)
-    _, ground = _laws(parameters, stick_model)
-    plate = b.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
-    thickness = 2.0 * c.contact_radius
-    add_ground_contact(b, c, plate, ground)  # packaging, and content as a backstop
-    rot = None
-    if orientation == "vertical":
-        # +x edge down: rotate +90 deg about y (x -> -z)
-        rot = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
-        strip = thickness * (2.0 if c.build.has_glued_strip else 1.0)
-        b.add_edge_contact(c.edge, plate, ground, radius=strip / 2)
-    model = b.finalize()
-    s0 = place_snapshot(snapshot, model, rotation=rot, lowest_z=drop_height + c.contact_radius)
-    return TestModel(model, c, s0, drop_touch_radius(c, orientation))
+    vertical = orientation == "vertical"
+    rot = _VERTICAL if vertical else None
+
+    def plate_model(mass_damping: float, drag: float, held_length: float = 0.0):
+        b, c = _builder(snapshot, parameters, stick_model, mass_damping=mass_damping,
+                        air_drag=drag)  # fmt: skip
+        _, ground = _laws(parameters, stick_model)
+        plate = b.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+        add_ground_contact(b, c, plate, ground)  # packaging, and content as a backstop
+        if vertical:
+            strip = 2.0 * c.contact_radius * (2.0 if c.build.has_glued_strip else 1.0)
+            b.add_edge_contact(c.edge, plate, ground, radius=strip / 2)
+        if held_length > 0.0:  # the top end: the snapshot's -x end, up once on end
+            x = snapshot.positions[c.packaging, 0]
+            b.clamp(c.packaging[x <= x.min() + held_length + 1e-9])
+        return b.finalize(), c
+
+    model, c = plate_model(0.0, air_drag)
+    lowest = drop_height + c.contact_radius
+    s0 = place_snapshot(snapshot, model, rotation=rot, lowest_z=lowest)
+    if not (vertical and hold is not None):
+        return TestModel(model, c, s0, drop_touch_radius(c, orientation))
+    held_model, _ = plate_model(hold.mass_damping, 0.0, hold.held_length)
+    s0, record = hold_at_rest(held_model, s0, hold, consignment_options())
+    own = slice(0, len(snapshot.positions))  # the snapshot's nodes (place_snapshot)
+    s0.positions[own, 2] += lowest - s0.positions[c.packaging, 2].min()
+    return TestModel(model, c, s0, drop_touch_radius(c, orientation), {"hold": record})
 
 
 def drop_touch_radius(c: Consignment, orientation: str) -> float:
@@ -419,21 +449,25 @@ def drop_test(
     progress: Callable[[float, float], None] | None = None,
     stick_model: bool = True,
     air_drag: float = 0.0,
+    hold: DropHold | None = None,
 ) -> TestRun:
     """Release the consignment from rest with its lowest point ``drop_height`` [m] above a
     rigid plate (z = 0): lying flat ("horizontal") or standing on its +x edge ("vertical",
-    KP/BW's glued strip, with a line contact of that edge against the plate). ``air_drag``:
-    drag coefficient of the envelope in still air (0: none, the paper's model)."""
+    KP/BW's glued strip, with a line contact of that edge against the plate; with ``hold``
+    held at rest by its top end first, see :func:`drop_model`). ``air_drag``: drag
+    coefficient of the envelope in still air (0: none, the paper's model). The wall time
+    includes the hold."""
     p = parse_assignments(parameters)
     tm = drop_model(snapshot, orientation, p, drop_height=drop_height, stick_model=stick_model,
-                    air_drag=air_drag)  # fmt: skip
+                    air_drag=air_drag, hold=hold)  # fmt: skip
     res, wall = _run(tm.model, tm.state0, t_end, dt_out, options, progress)
+    wall += tm.preparation.get("hold", {}).get("wall_s", 0.0)
     gap, gap_why = camera_clearance(tm.model, res, tm.consignment, touch_radius=tm.reference)
     rise, rise_why = com_rise_outcome(tm.model, res, tm.consignment, touch_radius=tm.reference)
     responses = {"rebound_mm": _mm(gap), "com_rise_mm": _mm(rise)}
     notes = {k: why for k, why in (("rebound_mm", gap_why), ("com_rise_mm", rise_why)) if why}
     return TestRun(f"drop-{orientation}", res, responses, p, tm.model, tm.consignment, wall,
-                   notes)  # fmt: skip
+                   notes, tm.preparation)  # fmt: skip
 
 
 def com_rise_outcome(

@@ -14,7 +14,7 @@ response; either is not reached when the run ends before the touch or before its
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -33,6 +33,7 @@ from flexparcel.scenarios.consignment_tests import (
     drop_touch_radius,
     lowest_point_gap,
 )
+from flexparcel.scenarios.holding import DropHold
 
 if TYPE_CHECKING:
     from flexparcel.consignments.snapshot import Snapshot
@@ -53,14 +54,17 @@ DROP_HEIGHT = 0.200
 class DropScenario(ConsignmentTest):
     """A drop test; ``orientation`` "vertical" or "horizontal", ``drop_height`` [m],
     ``air_drag``: the envelope's drag coefficient in still air (default 0: none, the paper's
-    model)."""
+    model); ``hold``: hold the vertical drop's consignment at rest by its top end under
+    gravity before the release (:mod:`flexparcel.scenarios.holding`; default None: released
+    from the snapshot as assembled, without gravity)."""
 
     description = "drop test: released from rest 200 mm above a rigid plate (paper 3.2)"
     t_end = 0.3
     dt_out = 0.001  # the impact lasts a few ms
 
     def __init__(self, orientation: str, *, drop_height: float = DROP_HEIGHT,
-                 stick_model: bool = True, air_drag: float = 0.0):  # fmt: skip
+                 stick_model: bool = True, air_drag: float = 0.0,
+                 hold: DropHold | None = None):  # fmt: skip
         if orientation not in ("vertical", "horizontal"):
             raise ValueError(f"orientation must be 'vertical' or 'horizontal', got {orientation!r}")
         if not 0.0 < drop_height <= 10.0:
@@ -70,21 +74,24 @@ class DropScenario(ConsignmentTest):
         self.drop_height = float(drop_height)
         self.stick_model = bool(stick_model)
         self.air_drag = check_drag_coefficient(air_drag, "air_drag (drag coefficient C_d)")
+        self.hold = hold if orientation == "vertical" else None
 
     def build(self, consignment: Snapshot | Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip
         snap = single_snapshot(consignment, self.name)
         return drop_model(snap, self.orientation, self.resolve(parameters, snap.build),
                           drop_height=self.drop_height, stick_model=self.stick_model,
-                          air_drag=self.air_drag)  # fmt: skip
+                          air_drag=self.air_drag, hold=self.hold)  # fmt: skip
 
     def _settings(self) -> dict:
-        return {"drop_height_m": self.drop_height, "air_drag": self.air_drag}
+        hold = None if self.hold is None else asdict(self.hold)
+        return {"drop_height_m": self.drop_height, "air_drag": self.air_drag, "hold": hold}
 
     def _test_run(self, snapshot, parameters, t_end, dt_out, progress) -> TestRun:
         return drop_test(snapshot, self.orientation, parameters, t_end=t_end, dt_out=dt_out,
                          drop_height=self.drop_height, progress=progress,
-                         stick_model=self.stick_model, air_drag=self.air_drag)  # fmt: skip
+                         stick_model=self.stick_model, air_drag=self.air_drag,
+                         hold=self.hold)  # fmt: skip
 
     def responses(self, result: ScenarioResult) -> dict[str, Response]:
         run: TestRun = result.record

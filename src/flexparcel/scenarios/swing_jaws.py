@@ -34,7 +34,8 @@ from flexparcel.consignments.build import Consignment
 from flexparcel.elements.rotations import apply_spins, rotation_vectors
 from flexparcel.integrate.dynamic import IntegratorOptions
 from flexparcel.model.model import Model, State
-from flexparcel.simulate import ModelStepper, state_energies
+from flexparcel.scenarios.holding import settle_record
+from flexparcel.simulate import ModelStepper
 
 __all__ = ["JawClosing", "close_jaws", "jaw_targets"]
 
@@ -115,9 +116,4 @@ def close_jaws(
         s.velocities[clamped] = 0.0
         s = stepper.advance(s, k * closing.close_time / n, None)
     s = stepper.advance(s, closing.close_time + closing.hold_time, None)
-    record = {"steps": stepper.integrator.stats.steps, "wall_s": time.perf_counter() - wall,
-              "kinetic_end_j": state_energies(model, s)[0]}  # fmt: skip
-    s.velocities[:] = 0.0
-    s.accelerations[:] = 0.0
-    s.time = 0.0
-    return s, record
+    return s, settle_record(stepper, model, s, wall)
