@@ -195,6 +195,10 @@ def test_run_swing_from_snapshot(assembled, tmp_path, capsys):
     # not set: the file's own modulus (60 MPa), Table 6 contact values
     assert r["parameters"]["youngs_modulus"] == pytest.approx(60.0)
     assert r["parameters"]["contact_stiffness_packaging_content"] == pytest.approx(649.0)
+    # the jaw closing before the release, its wall time part of wall_s
+    jaws = r["preparation"]["jaw_closing"]
+    assert isinstance(jaws["steps"], int) and jaws["steps"] > 0
+    assert 0.0 < jaws["wall_s"] <= r["wall_s"] and jaws["kinetic_end_j"] < 1e-6
     assert not (out / "snapshot.npz").exists()  # started from the given one
     for name in ("results.npz", "frames.png", "response.png", "paraview/packaging.pvd",
                  "paraview/packaging_0000.vtu", "paraview/content.pvd"):  # fmt: skip

@@ -199,7 +199,7 @@ class TestRun:
                 q.name: q.unit for q in TEST_PARAMETERS if q.name in self.parameters
             },
             "preparation": {
-                k: {n: float(v) for n, v in r.items()} for k, r in self.preparation.items()
+                k: {n: _json_number(v) for n, v in r.items()} for k, r in self.preparation.items()
             },  # fmt: skip
             "steps": int(self.result.stats.get("steps", 0)),
             "newton_iterations": int(self.result.stats.get("newton_iterations", 0)),
@@ -344,6 +344,11 @@ def swing_test(
     notes = {k: SWING_NOT_REACHED[k] for k, v in responses.items() if v is None}
     return TestRun("swing", res, responses, p, tm.model, tm.consignment, wall, notes,
                    tm.preparation)  # fmt: skip
+
+
+def _json_number(v: float) -> int | float:
+    """``v`` as a JSON number: counts stay integers."""
+    return int(v) if isinstance(v, int | np.integer) else float(v)
 
 
 def _mm(value_m: float | None) -> float | None:
