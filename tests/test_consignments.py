@@ -374,7 +374,7 @@ def test_vertical_drop_hold_leaves_the_consignment_at_rest_at_the_drop_height(sm
     # for 0.2 s, then at rest and moved down to the drop height. Gravity may let the content
     # sink in its pouch (KP/BW at 25 mm: 0.01 mm, held by the film wrapped round it), and the
     # held nodes keep their shape
-    from flexparcel.scenarios.consignment_tests import drop_model, parse_assignments
+    from flexparcel.scenarios.consignment_tests import drop_model, end_nodes, parse_assignments
     from flexparcel.scenarios.holding import DropHold
 
     p = parse_assignments(None)
@@ -386,8 +386,8 @@ def test_vertical_drop_hold_leaves_the_consignment_at_rest_at_the_drop_height(sm
     assert np.all(s1.velocities == 0.0) and s1.time == 0.0
     z = s1.positions[c.packaging, 2]
     assert z.min() == pytest.approx(s0.positions[c.packaging, 2].min(), abs=1e-12)
-    x = small.positions[c.packaging, 0]
-    top = c.packaging[x <= x.min() + DropHold().held_length + 1e-9]
+    top = end_nodes(small, c, DropHold().held_length)
+    assert top.size > 0
     shift = s1.positions[top] - s0.positions[top]
     np.testing.assert_allclose(shift - shift[0], 0.0, atol=1e-12)
     # the content below the held end: it may sink (by less than a mm), not rise by more than
@@ -397,6 +397,8 @@ def test_vertical_drop_hold_leaves_the_consignment_at_rest_at_the_drop_height(sm
     assert -1e-3 < rel1 - rel0 < 1e-5
     with pytest.raises(ValueError, match=r"DropHold.hold_time must be in \(0, 2\]"):
         DropHold(hold_time=0.0)
+    with pytest.raises(ValueError, match="hold applies to the vertical drop only"):
+        drop_model(small, "horizontal", p, hold=DropHold())
 
 
 def test_jaws_close_the_clamp_flat_and_leave_the_consignment_at_rest(small):

@@ -64,6 +64,7 @@ __all__ = [
     "swing_model",
     "drop_model",
     "drop_touch_radius",
+    "end_nodes",
     "swing_test",
     "drop_test",
     "swing_peaks",
@@ -198,9 +199,7 @@ class TestRun:
             "parameter_units": {
                 q.name: q.unit for q in TEST_PARAMETERS if q.name in self.parameters
             },
-            "preparation": {
-                k: {n: _json_number(v) for n, v in r.items()} for k, r in self.preparation.items()
-            },  # fmt: skip
+            "preparation": {k: dict(r) for k, r in self.preparation.items()},
             "steps": int(self.result.stats.get("steps", 0)),
             "newton_iterations": int(self.result.stats.get("newton_iterations", 0)),
         }
@@ -283,6 +282,13 @@ class TestModel:
     if nothing."""
 
 
+def end_nodes(snapshot: Snapshot, c: Consignment, length: float) -> np.ndarray:
+    """Packaging nodes (ids) within ``length`` [m] of the snapshot's -x end, both layers: the
+    swing's clamp, the vertical drop's hold (that end up once on end)."""
+    x = snapshot.positions[c.packaging, 0]
+    return c.packaging[x <= x.min() + length + 1e-9]
+
+
 def swing_model(
     snapshot: Snapshot,
     parameters: Mapping[str, float],
@@ -301,10 +307,9 @@ def swing_model(
 
     def clamped_model(gravity: float, mass_damping: float = 0.0, drag: float = 0.0):
         b, c = _builder(snapshot, parameters, stick_model, gravity, mass_damping, drag)
-        x = snapshot.positions[c.packaging, 0]
-        x_clamp = float(x.min() + clamped_length)
-        clamped = c.packaging[x <= x_clamp + 1e-9]
+        clamped = end_nodes(snapshot, c, clamped_length)
         b.clamp(clamped)
+        x_clamp = float(snapshot.positions[c.packaging, 0].min() + clamped_length)
         return b.finalize(), c, clamped, x_clamp
 
     model, c, clamped, x_clamp = clamped_model(9.81, 0.0, air_drag)
@@ -344,11 +349,6 @@ def swing_test(
     notes = {k: SWING_NOT_REACHED[k] for k, v in responses.items() if v is None}
     return TestRun("swing", res, responses, p, tm.model, tm.consignment, wall, notes,
                    tm.preparation)  # fmt: skip
-
-
-def _json_number(v: float) -> int | float:
-    """``v`` as a JSON number: counts stay integers."""
-    return int(v) if isinstance(v, int | np.integer) else float(v)
 
 
 def _mm(value_m: float | None) -> float | None:
@@ -400,10 +400,12 @@ def drop_model(
     ``parameters`` in paper units; ``air_drag`` as for :func:`swing_model`. ``hold``: start
     the vertical drop from the consignment held at rest by its top end under gravity
     (:mod:`flexparcel.scenarios.holding`); None (the default) from the snapshot as assembled,
-    without gravity. The horizontal drop holds nothing."""
+    without gravity. A hold for the horizontal drop raises ``ValueError``."""
     if orientation not in ("horizontal", "vertical"):
         raise ValueError(f"orientation must be 'horizontal' or 'vertical', got {orientation!r}")
     vertical = orientation == "vertical"
+    if hold is not None and not vertical:
+        raise ValueError("hold applies to the vertical drop only")
     rot = _VERTICAL if vertical else None
 
     def plate_model(mass_damping: float, drag: float, held_length: float = 0.0):
@@ -413,17 +415,15 @@ def drop_model(
         plate = b.add_plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
         add_ground_contact(b, c, plate, ground)  # packaging, and content as a backstop
         if vertical:
-            strip = 2.0 * c.contact_radius * (2.0 if c.build.has_glued_strip else 1.0)
-            b.add_edge_contact(c.edge, plate, ground, radius=strip / 2)
-        if held_length > 0.0:  # the top end: the snapshot's -x end, up once on end
-            x = snapshot.positions[c.packaging, 0]
-            b.clamp(c.packaging[x <= x.min() + held_length + 1e-9])
+            b.add_edge_contact(c.edge, plate, ground, radius=_edge_radius(c))
+        if held_length > 0.0:  # the top end once on end
+            b.clamp(end_nodes(snapshot, c, held_length))
         return b.finalize(), c
 
     model, c = plate_model(0.0, air_drag)
     lowest = drop_height + c.contact_radius
     s0 = place_snapshot(snapshot, model, rotation=rot, lowest_z=lowest)
-    if not (vertical and hold is not None):
+    if hold is None:
         return TestModel(model, c, s0, drop_touch_radius(c, orientation))
     held_model, _ = plate_model(hold.mass_damping, 0.0, hold.held_length)
     s0, record = hold_at_rest(held_model, s0, hold, consignment_options())
@@ -432,14 +432,19 @@ def drop_model(
     return TestModel(model, c, s0, drop_touch_radius(c, orientation), {"hold": record})
 
 
+def _edge_radius(c: Consignment) -> float:
+    """Radius [m] of the vertical drop's edge line contact: half the strip's thickness, the
+    film's doubled by KP/BW's glued strip."""
+    return c.contact_radius * (2.0 if c.build.has_glued_strip else 1.0)
+
+
 def drop_touch_radius(c: Consignment, orientation: str) -> float:
     """Contact radius [m] with which the dropped consignment first touches the plate: its
-    nodes' lying flat; standing on the edge, the edge's line contact (half the strip's
-    thickness, doubled by KP/BW's glued strip), where larger."""
+    nodes' lying flat; standing on the edge, the edge's line contact (:func:`_edge_radius`),
+    where larger."""
     if orientation != "vertical":
         return c.contact_radius
-    strip = 2.0 * c.contact_radius * (2.0 if c.build.has_glued_strip else 1.0)
-    return max(c.contact_radius, strip / 2)
+    return max(c.contact_radius, _edge_radius(c))
 
 
 def drop_test(

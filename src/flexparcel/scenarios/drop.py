@@ -74,7 +74,9 @@ class DropScenario(ConsignmentTest):
         self.drop_height = float(drop_height)
         self.stick_model = bool(stick_model)
         self.air_drag = check_drag_coefficient(air_drag, "air_drag (drag coefficient C_d)")
-        self.hold = hold if orientation == "vertical" else None
+        if hold is not None and orientation != "vertical":
+            raise ValueError("hold applies to the vertical drop only")
+        self.hold = hold
 
     def build(self, consignment: Snapshot | Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip

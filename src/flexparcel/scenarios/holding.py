@@ -55,11 +55,13 @@ class DropHold:
 
 
 def settle_record(stepper: ModelStepper, model: Model, s: State, wall0: float) -> dict:
-    """The record of a held phase that ends in ``s``: ``steps``, ``wall_s`` since ``wall0``
-    (a ``time.perf_counter()`` value), ``kinetic_end_j`` (kinetic energy [J] at its end);
-    then ``s`` is set at rest (velocities and accelerations zero, time 0) in place."""
-    record = {"steps": stepper.integrator.stats.steps, "wall_s": time.perf_counter() - wall0,
-              "kinetic_end_j": state_energies(model, s)[0]}  # fmt: skip
+    """The record (plain JSON numbers) of a held phase that ends in ``s``: ``steps``,
+    ``wall_s`` since ``wall0`` (a ``time.perf_counter()`` value), ``kinetic_end_j`` (kinetic
+    energy [J] at its end); then ``s`` is set at rest (velocities and accelerations zero,
+    time 0) in place."""
+    record = {"steps": int(stepper.integrator.stats.steps),
+              "wall_s": time.perf_counter() - wall0,
+              "kinetic_end_j": float(state_energies(model, s)[0])}  # fmt: skip
     s.velocities[:] = 0.0
     s.accelerations[:] = 0.0
     s.time = 0.0
