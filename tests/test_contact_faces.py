@@ -93,3 +93,115 @@ def test_shell_edges_lists_each_kept_element_edge_once():
         edges, [[0, 1], [0, 3], [1, 2], [2, 3], [2, 5], [2, 6], [3, 6], [5, 6]]
     )
     assert shell_edges([], keep).shape == (0, 2)
+
+
+# A V-shaped fold of two faces sharing the edge (-10, 0, 0)-(10, 0, 0) mm, each rising 3 mm over
+# 10 mm (16.7 deg), and a node in the valley, inside both faces' prisms: the geometry of a
+# content node against the film wrapped round its edge (the conveyor at 25 mm, where Newton's
+# iterates straddled the two faces' equal depth; see flexparcel.contact.faces).
+_FOLD = np.array([[0.0, 0.0, 0.0], [-0.01, 0.0, 0.0], [0.01, 0.0, 0.0],
+                  [0.0, -0.01, 0.003], [0.0, 0.01, 0.003]])  # fmt: skip
+_FOLD_TRIS = np.array([[2, 1, 3], [1, 2, 4]])  # both normals up, n_A towards +y, n_B towards -y
+_FOLD_H = 1e-4  # contact thickness [m]
+
+
+def _fold_force(y, face):
+    """Force (3,) on the valley node at lateral offset ``y`` [m], 50 um above the fold line,
+    with the preferred face ``face`` (1,) (updated in place to the face used)."""
+    from flexparcel.contact.faces import face_contact_forces
+
+    pos = _FOLD.copy()
+    pos[0] = (0.001, y, 5e-5)
+    f = np.zeros((5, 6))
+    fk, fc, dofs = np.zeros((2, 12, 12)), np.zeros((2, 12, 12)), np.zeros((2, 12), np.int64)
+    law = ContactLaw(stiffness=6.49e9).packed()  # Table 6's 649 N/mm per (10 mm)^2
+    nc = face_contact_forces(
+        np.array([[0, 0], [0, 1]]), np.array([1.0, 1.0]), np.array([0]), _FOLD_TRIS, _FOLD_H,
+        law, 1.0, np.array([1e-4]), pos, np.zeros((5, 6)), f, fk, fc, dofs, np.ones(5), 1e9,
+        np.zeros(1), np.zeros((1, 3)), np.zeros(1), np.zeros((1, 3)), np.zeros(1), pos, face,
+    )[0]  # fmt: skip
+    assert nc == 1
+    return f[0, :3]
+
+
+def _fold_normals():
+    from flexparcel.contact.geometry import point_triangle_contact
+
+    return [point_triangle_contact(_FOLD[0] + (0.001, 0, 5e-5), *_FOLD[t], _FOLD_H, 1)[3]
+            for t in _FOLD_TRIS]  # fmt: skip
+
+
+def test_node_in_a_fold_keeps_its_face_within_the_margin_and_takes_the_deeper_beyond_it():
+    from flexparcel.contact.faces import FACE_KEEP_MARGIN
+
+    n_a, n_b = _fold_normals()
+    assert np.degrees(np.arccos(n_a @ n_b)) > 30.0  # the fold turns the normal by 33 deg
+    # depth difference s_A - s_B = 2 y sin(16.7 deg) = 0.57 y: at y = 1e-8 m it is 6 nm, below
+    # the margin (1e-3 h = 100 nm); at 1e-6 m 0.57 um, beyond it
+    assert 0.57e-8 < FACE_KEEP_MARGIN * _FOLD_H < 0.57e-6
+    unit = lambda f: f / np.linalg.norm(f)  # noqa: E731
+    normals = (n_a, n_b)
+    for y, deeper in ((1e-8, 1), (-1e-8, 0)):  # a node towards +y is nearer face B's rise
+        # no preference: the deepest face, pushing along its own normal
+        face = np.full(1, -1)
+        f = _fold_force(y, face)
+        assert np.allclose(unit(f), normals[deeper], atol=1e-6) and face[0] == deeper
+        # a preference for the other face, within the margin: kept
+        face = np.array([1 - deeper])
+        f = _fold_force(y, face)
+        assert face[0] == 1 - deeper
+        assert np.allclose(unit(f), normals[1 - deeper], atol=1e-6)
+        # beyond the margin the deeper face takes over
+        face = np.array([1 - deeper])
+        _fold_force(1e2 * y, face)
+        assert face[0] == deeper
+    # a node out of contact forgets its face
+    face = np.array([0])
+    pos_far = 0.01  # 10 mm above the fold: no penetration
+    from flexparcel.contact.faces import face_contact_forces
+
+    pos = _FOLD.copy()
+    pos[0] = (0.001, 0.0, pos_far)
+    args = (np.zeros((5, 6)), np.zeros((2, 12, 12)), np.zeros((2, 12, 12)),
+            np.zeros((2, 12), np.int64))  # fmt: skip
+    nc = face_contact_forces(
+        np.array([[0, 0], [0, 1]]), np.array([1.0, 1.0]), np.array([0]), _FOLD_TRIS, _FOLD_H,
+        ContactLaw(stiffness=6.49e9).packed(), 1.0, np.array([1e-4]), pos, np.zeros((5, 6)),
+        *args, np.ones(5), 1e9, np.zeros(1), np.zeros((1, 3)), np.zeros(1), np.zeros((1, 3)),
+        np.zeros(1), pos, face,
+    )[0]  # fmt: skip
+    assert nc == 0 and face[0] == -1
+
+
+def test_iterates_straddling_a_fold_see_one_continuous_force():
+    # Newton's iterates 0.1 nm either side of the faces' equal depth: carried from evaluation
+    # to evaluation (as NodeFaceSet does within a step), the face stays put and the force
+    # changes by what 0.1 nm of motion makes; chosen afresh each time, it turns by the fold
+    # angle, a jump of 0.57 of its size (the 2-cycle of the conveyor's stall)
+    face = np.full(1, -1)
+    kept = [_fold_force(y, face) for y in (1e-10, -1e-10, 1e-10, -1e-10)]
+    fresh = [_fold_force(y, np.full(1, -1)) for y in (1e-10, -1e-10)]
+    size = np.linalg.norm(kept[0])
+    k_point = 6.49e9 * 1e-4  # the law's stiffness times the node's area [N/m]
+    assert max(np.linalg.norm(k - kept[0]) for k in kept) < k_point * 2e-10  # 0.1 nm each way
+    assert np.linalg.norm(fresh[1] - fresh[0]) > 0.5 * size
+
+
+def test_node_face_set_carries_its_faces_through_a_step_and_a_checkpoint():
+    model, _ = _stack()
+    cs = next(c for c in model.contact_sets if c.kind == "node_face")
+    cs.face_trial[:] = 3
+    cs.commit()
+    assert (cs.face == 3).all()
+    cs.face_trial[:] = 5  # a rejected try's evaluations
+    cs.begin_step()  # the retry starts from the accepted step's faces
+    assert (cs.face_trial == 3).all()
+    hist = {k: v.copy() for k, v in cs.history().items()}  # as the integrator keeps it
+    assert (hist["face"] == 3).all()
+    cs.face[:] = -1
+    cs.restore_history(hist)
+    assert (cs.face == 3).all() and (cs.face_trial == 3).all()
+    # a checkpoint written before faces were kept: no preference
+    old = {k: v for k, v in hist.items() if k != "face"}
+    cs.restore_history(old)
+    assert (cs.face == -1).all()

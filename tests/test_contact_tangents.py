@@ -302,6 +302,7 @@ def _face_run(law, pos, vel, side, anchor=None, pos0=None):
         np.zeros(1),
         np.zeros((1, 3)) if anchor is None else np.asarray(anchor, float)[None],
         np.array([0.0 if anchor is None else 1.0]), np.zeros((1, 3)), np.zeros(1), pos0,
+        np.full(1, -1),
     )[0]  # fmt: skip
     assert nc == 1
     assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 12, 13, 14, 18, 19, 20]

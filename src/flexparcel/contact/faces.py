@@ -5,7 +5,20 @@ A contact set pairs a set of nodes with a set of triangles (the shells' quads sp
 Candidate pairs come from the broad phase (:mod:`flexparcel.contact.broadphase`) once per time
 step, together with the side of the face each node is on at the start of the step, so a node is
 always pushed back to the side it came from (a thin shell has two free sides). Per node only the
-deepest candidate is used (a node near a shared edge is a candidate of several faces).
+deepest candidate is used (a node near a shared edge is a candidate of several faces), with
+hysteresis: a node keeps the face it used last while that face still holds it and is no more than
+:data:`FACE_KEEP_MARGIN` times the contact thickness shallower than the deepest.
+
+Why the hysteresis. A node inside a fold of the faceted surface (a content node against the
+film wrapped round its edge) lies in the prisms of both faces next to the fold line, at nearly
+equal depths; each face pushes along its own normal, so the force turns by the fold angle where
+the two depths cross. Newton's iterates straddled that crossing on the paper's conveyor at 25 mm
+(PB's content node 689 against film faces 17 deg apart, depths 223.83 and 223.80 nm): the
+force's tangential part jumped by 0.08 N between iterates 0.1 nm apart, Newton cycled, and the
+steps fell to 0.4 us. With the margin a face change needs the other face to be deeper by
+1e-3 h (50 nm on a 0.1 mm film), so iterates no longer flip, and in the motion the force turns
+at most that much later: a 50 nm dead band on 25 mm facets, whose fold is itself the
+discretisation's (a smooth surface would turn the normal over the whole element).
 
 With the closest point ``sum_i l_i x_i`` on the face (barycentric ``l``), the face normal ``n``
 towards the node and the contact thickness ``h`` (half the two shells' thicknesses):
@@ -39,7 +52,7 @@ import numba as nb
 import numpy as np
 
 from flexparcel.contact.broadphase import point_triangle_candidates
-from flexparcel.contact.common import AnchoredHistory, StickAnchors, pair_blocks
+from flexparcel.contact.common import StickAnchors, check_history, pair_blocks
 from flexparcel.contact.geometry import (
     point_triangle,
     point_triangle_contact_derivs,
@@ -56,7 +69,12 @@ __all__ = [
     "point_face_candidates",
     "NodeFaceSet",
     "EdgeFaceSet",
+    "FACE_KEEP_MARGIN",
 ]
+
+FACE_KEEP_MARGIN = 1e-3
+"""A node-face contact keeps its face while that face is at most this fraction of the contact
+thickness shallower than the deepest candidate (see the module docstring)."""
 
 
 @nb.njit(cache=True)
@@ -162,10 +180,14 @@ def _point_face_pair(p, vp, tx, tv, thickness, side, law, scale, stick, m, c0):
 
 
 @nb.njit(cache=True)
-def _best_candidates(pairs, sides, points, tris, pos, thickness):
-    """Deepest candidate per query point (-1 if none penetrates)."""
+def _best_candidates(pairs, sides, points, tris, pos, thickness, face, margin):
+    """Candidate per query point (-1 if none penetrates): the deepest, unless the point's
+    previous face ``face[q]`` (a row of ``tris``, -1: none) penetrates too and is at most
+    ``margin`` [m] shallower, in which case that one (hysteresis, see the module docstring)."""
     best = np.full(points.shape[0], -1)
     best_s = np.zeros(points.shape[0])
+    kept = np.full(points.shape[0], -1)
+    kept_s = np.zeros(points.shape[0])
     for k in range(pairs.shape[0]):
         q = pairs[k, 0]
         t = tris[pairs[k, 1]]
@@ -174,6 +196,12 @@ def _best_candidates(pairs, sides, points, tris, pos, thickness):
         if s > best_s[q]:
             best_s[q] = s
             best[q] = k
+        if pairs[k, 1] == face[q] and s > 0.0:
+            kept[q] = k
+            kept_s[q] = s
+    for q in range(points.shape[0]):
+        if kept[q] >= 0 and kept_s[q] >= best_s[q] - margin:
+            best[q] = kept[q]
     return best
 
 
@@ -201,6 +229,7 @@ def face_contact_forces(
     anchor_new,
     has_anchor_new,
     pos0,
+    face,
 ):
     """Forces of one contact set, the law at node q of ``nodes`` multiplied by the schedule factor
     ``act`` and its tributary area ``node_area[q]`` [m^2]; blocks (K, 12, 12) of d[f_node, f_a, f_b,
@@ -209,6 +238,8 @@ def face_contact_forces(
     Stick model (law with k_t > 0): ``anchor`` (N, 3) world anchors [m] per node of the set at
     the step's start, valid where ``has_anchor`` (N,) is nonzero; this evaluation's anchors go
     to ``anchor_new`` / ``has_anchor_new``; ``pos0`` (n, 3) are the step's start positions.
+    ``face`` (N,) int: each node's face (row of ``tris``) in the previous evaluation, -1 none;
+    read for the hysteresis of the face choice and overwritten with this evaluation's.
     Returns (contacts, deepest penetration [m], worst penetration / max_penetration)."""
     npts = nodes.shape[0]
     points = np.empty((npts, 3))
@@ -216,7 +247,11 @@ def face_contact_forces(
         points[q] = pos[nodes[q]]
         has_anchor_new[q] = 0.0
     out_dofs[:, :] = -1
-    best = _best_candidates(pairs, sides, points, tris, pos, thickness)
+    best = _best_candidates(
+        pairs, sides, points, tris, pos, thickness, face, FACE_KEEP_MARGIN * thickness
+    )
+    for q in range(npts):
+        face[q] = -1
     n_contact = 0
     deepest = 0.0
     worst = 0.0
@@ -250,6 +285,7 @@ def face_contact_forces(
         if s <= 0.0:
             continue
         n_contact += 1
+        face[q] = pairs[k, 1]
         deepest = max(deepest, s)
         worst = max(worst, s / law[P_MAX_PEN])
         if abs(vn) > v_impact and mass[node] > 0.0:
@@ -302,7 +338,8 @@ def edge_face_forces(
     penetration [m], worst penetration / max)."""
     stations, _ = edge_stations(edges, samples, pos)
     out_dofs[:, :] = -1
-    best = _best_candidates(pairs, sides, stations, tris, pos, thickness)
+    no_face = np.full(stations.shape[0], -1)
+    best = _best_candidates(pairs, sides, stations, tris, pos, thickness, no_face, 0.0)
     if act == 0.0:
         return 0, 0.0, 0.0
     n_contact = 0
@@ -389,12 +426,13 @@ def _set_digest(kind: str, *arrays) -> str:
     return h.hexdigest()[:32]
 
 
-class NodeFaceSet(AnchoredHistory, ContactSet):
+class NodeFaceSet(ContactSet):
     """Node-to-face contact: nodes against triangles (shell faces or solid boundary faces),
     both sides of a face free, contact distance ``thickness`` [m]; ``areas`` (N,): each slave
     node's tributary area [m^2] (reference geometry) by which the per-area law is multiplied.
     Candidates are found once per step; each node keeps the side of its face it started the
-    step on. History: the stick model's world anchors per node."""
+    step on. History: the stick model's world anchors per node, and each node's face (for the
+    hysteresis of the face choice, module docstring)."""
 
     kind = "node_face"
 
@@ -408,7 +446,28 @@ class NodeFaceSet(AnchoredHistory, ContactSet):
         self.area = np.array(np.broadcast_to(areas, self.node.shape), dtype=float)
         """Tributary area of each slave node [m^2], shape (N,)."""
         self.anchors = StickAnchors(self.node.size)
+        self.face = np.full(self.node.size, -1, dtype=np.int64)
+        """Each node's face (row of ``triangles``) at the last accepted step, -1: none."""
+        self.face_trial = self.face.copy()
         self.candidates = (np.zeros((0, 2), np.int64), np.zeros(0))
+
+    def begin_step(self) -> None:
+        self.face_trial = self.face.copy()
+
+    def commit(self) -> None:
+        self.anchors.commit()
+        self.face = self.face_trial.copy()
+
+    def history(self) -> dict[str, np.ndarray]:
+        return {**self.anchors.history(), "face": self.face}
+
+    def restore_history(self, history) -> None:
+        self.anchors.restore(history)
+        # a checkpoint written before the face history existed: no preference, so the first
+        # step chooses the deepest face as it did then
+        none = np.full(self.node.size, -1, dtype=np.int64)
+        self.face = check_history({"face": history.get("face", none)}, "face", none)
+        self.face_trial = self.face.copy()
 
     def prepare(self, ctx, start, step) -> None:
         points = start.positions[self.node]
@@ -423,7 +482,7 @@ class NodeFaceSet(AnchoredHistory, ContactSet):
             pairs, sides, self.node, self.triangles, self.thickness, ctx.laws[self.law_index],
             ctx.factors[self.schedule_index], self.area, state.positions, state.velocities,
             out.forces, fk, fc, dofs, ctx.node_mass, ctx.impact_speed, ctx.w2,
-            *self.anchors.kernel_args(), ctx.start.positions,
+            *self.anchors.kernel_args(), ctx.start.positions, self.face_trial,
         )  # fmt: skip
         out.coupled_blocks.append((fk, fc, dofs))
         out.merge(n_contact, depth, ratio)
