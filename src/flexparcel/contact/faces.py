@@ -16,9 +16,10 @@ the two depths cross. Newton's iterates straddled that crossing on the paper's c
 (PB's content node 689 against film faces 17 deg apart, depths 223.83 and 223.80 nm): the
 force's tangential part jumped by 0.08 N between iterates 0.1 nm apart, Newton cycled, and the
 steps fell to 0.4 us. With the margin a face change needs the other face to be deeper by
-1e-3 h (50 nm on a 0.1 mm film), so iterates no longer flip, and in the motion the force turns
-at most that much later: a 50 nm dead band on 25 mm facets, whose fold is itself the
-discretisation's (a smooth surface would turn the normal over the whole element).
+1e-3 h (30 nm for PB's content on its 0.06 mm film, h = 0.03 mm), so iterates no longer
+flip; in the motion the force turns at most that much later: a 30 nm dead band on 25 mm
+facets, whose fold is itself the discretisation's (a smooth surface would turn the normal over
+the whole element).
 
 With the closest point ``sum_i l_i x_i`` on the face (barycentric ``l``), the face normal ``n``
 towards the node and the contact thickness ``h`` (half the two shells' thicknesses):
