@@ -195,3 +195,55 @@ def test_edge_contact_stick_model_holds_a_sheet_on_an_incline():
                      indentation_exponent=0.0, mu_static=0.3, mu_dynamic=0.3)  # fmt: skip
     assert abs(_edge_creep(law.with_stick_model())) < 1e-6
     assert _edge_creep(law) > 1e-4
+
+
+def test_edge_pair_springs_follow_the_accepted_step_and_a_checkpoint():
+    # Two crossing 1-quad sheets, B 0.1 mm above A within the 0.3 mm contact thickness: B's
+    # edge x = 0 crosses A's edges y = +-10 mm. B moved 1 um along +x over a step: each of the
+    # two pairs sticks with the elastic slip du = x_a - x_b = -1 um x (in the tangent plane),
+    # which the accepted step hands on to B's edge, with A's edge it belongs to.
+    from flexparcel.contact.edge_edge import EdgeEdgeSet
+    from flexparcel.integrate.dynamic import GeneralizedAlpha
+
+    b = fp.ModelBuilder()
+    pa, qa = fp.mesh.rectangle(0.02, 0.02, 1, 1, origin=(-0.01, -0.01, 0.0))
+    sheet_a = b.add_shell_mesh(pa, qa, material=SHEET)
+    b.clamp(sheet_a)
+    pb, qb = fp.mesh.rectangle(0.02, 0.04, 1, 1, origin=(0.0, -0.02, 1e-4))
+    sheet_b = b.add_shell_mesh(pb, qb, material=SHEET)
+    law = ContactLaw(stiffness=6.49e9, mu_static=0.3, mu_dynamic=0.3).with_stick_model()
+    b.add_edge_edge_contact(sheet_a, sheet_b, law, thickness=3e-4)
+    model = b.finalize()
+    integ = GeneralizedAlpha(model)
+    cs = next(c for c in integ.model.contact_sets if isinstance(c, EdgeEdgeSet))
+    s0 = model.initial_state()
+    integ.initialize(s0)
+    s1 = s0.copy()
+    s1.positions[sheet_b, 0] += 1e-6
+
+    def step(start, end):  # a step's contact evaluation, as GeneralizedAlpha._try_step does
+        integ._s0, integ._h_now = start, 1e-4
+        integ._prepare_contacts(start, 1e-4)
+        integ._contact(end, start.time + 1e-4)
+        cs.commit()
+
+    step(s0, s1)
+    held = np.flatnonzero(cs.partner >= 0)
+    edge_x0 = [k for k, e in enumerate(cs.edges_b) if np.allclose(s0.positions[e, 0], 0.0)]
+    assert list(held) == edge_x0  # one edge b, held by one of A's two edges (the last pair)
+    np.testing.assert_allclose(cs.u_el[held[0]], [-1e-6, 0.0, 0.0], atol=1e-15)
+    # the next step's pair starts from that spring; a step without contact clears it
+    integ._s0 = s1
+    integ._prepare_contacts(s1, 1e-4)
+    pairs = cs.candidates[0]
+    start = cs._u_prev[(pairs[:, 1] == held[0]) & (pairs[:, 0] == cs.partner[held[0]])]
+    np.testing.assert_allclose(start, [[-1e-6, 0.0, 0.0]], atol=1e-15)
+    hist = {k: v.copy() for k, v in cs.history().items()}
+    far = s1.copy()
+    far.positions[sheet_b, 2] += 0.01
+    step(far, far)
+    assert (cs.partner == -1).all() and not cs.u_el.any()
+    cs.restore_history(hist)  # a checkpoint
+    assert list(np.flatnonzero(cs.partner >= 0)) == edge_x0
+    cs.restore_history({})  # a checkpoint written before edge pairs had springs
+    assert (cs.partner == -1).all()

@@ -873,8 +873,10 @@ _EB = np.array([-0.3, 1.0, 0.25]) / np.linalg.norm([-0.3, 1.0, 0.25])
 _NAB = np.cross(_EA, _EB) / np.linalg.norm(np.cross(_EA, _EB))  # from b towards a
 
 
-def _edge_edge_run(law, pos, vel, n0):
-    """Forces on [p0, p1, q0, q1] (12,) and blocks (12, 12) of one candidate pair."""
+def _edge_edge_run(law, pos, vel, n0, pos0=None, u_prev=(0.0, 0.0, 0.0), u_new=None):
+    """Forces on [p0, p1, q0, q1] (12,) and blocks (12, 12) of one candidate pair; stick
+    model: the step started at ``pos0`` with the elastic slip ``u_prev`` (3,) [m], its new
+    value goes to ``u_new`` (1, 3)."""
     f = np.zeros((4, 6))
     ek = np.zeros((1, 12, 12))
     ec = np.zeros((1, 12, 12))
@@ -882,7 +884,8 @@ def _edge_edge_run(law, pos, vel, n0):
     nc = edge_edge_forces(
         np.array([[0, 0]]), np.asarray(n0, float)[None], np.array([[0, 1]]), np.array([[2, 3]]),
         THICK, law.packed(), ACT, np.array([AREA]), pos, vel, f, ek, ec, dofs, np.ones(4),
-        1e9, np.zeros(1),
+        1e9, np.zeros(1), pos if pos0 is None else pos0, np.asarray(u_prev, float)[None],
+        np.zeros((1, 3)) if u_new is None else u_new, H_STEP,
     )[0]  # fmt: skip
     if nc:
         assert list(dofs[0]) == [0, 1, 2, 6, 7, 8, 12, 13, 14, 18, 19, 20]
@@ -901,9 +904,8 @@ EDGE_EDGE_CASES = {
 }  # fmt: skip
 
 
-def edge_edge_errors(case):
-    """(error of the position block, of the velocity block) relative to the blocks' maxima."""
-    law, d, slip, closing = EDGE_EDGE_CASES[case]
+def _edge_edge_layout(d, slip, closing):
+    """Positions and velocities (4, 6) of the two edges, a lying ``d`` from b along n0."""
     pos = np.array([-0.004 * _EA, 0.006 * _EA, -0.005 * _EB, 0.005 * _EB])
     pos[2:] -= d * _NAB  # b moved so that a lies d from it along n0 = _NAB
     # edge b moves and stretches, edge a slides over it and turns a little: the closest
@@ -920,6 +922,13 @@ def edge_edge_errors(case):
     spin = np.cross(np.array([0.0, 0.0, 0.4]), 0.005 * _EA)
     vel[0, :3] = va - 2 * s * spin
     vel[1, :3] = vel[0, :3] + 2 * spin
+    return pos, vel, t1, t2
+
+
+def edge_edge_errors(case):
+    """(error of the position block, of the velocity block) relative to the blocks' maxima."""
+    law, d, slip, closing = EDGE_EDGE_CASES[case]
+    pos, vel, t1, t2 = _edge_edge_layout(d, slip, closing)
     _, ek, ec, nc = _edge_edge_run(law, pos, vel, _NAB)
     assert nc == 1
     g = THICK - d
@@ -935,6 +944,58 @@ def edge_edge_errors(case):
 @pytest.mark.parametrize("case", list(EDGE_EDGE_CASES))
 def test_edge_edge_tangents_match_finite_differences(case):
     edge_edge_errors(case)
+
+
+EDGE_EDGE_STICK_CASES = {
+    # name: (law, relative move of a's closest point over the step in creep bounds
+    #        mu_s F_N / k_t along (t1, t2), carried spring in creep bounds along t1, regime)
+    "pair-stick-new": (STICK, (0.3, -0.2), 0.0, "stick"),
+    "pair-stick-carried": (STICK, (0.2, 0.1), 0.4, "stick"),
+    "pair-slip": (STICK, (2.5, 1.5), 0.0, "slip"),
+    "pair-slip-blend": (BLEND_STICK, (2.0, 0.5), 0.5, "slip"),
+}
+
+
+def edge_edge_stick_errors(case):
+    """Stick model on an edge pair: the regime, the spring's force where it sticks, the
+    elastic slip handed on, and the blocks against central differences."""
+    law, move, carried, regime = EDGE_EDGE_STICK_CASES[case]
+    pos, vel, t1, t2 = _edge_edge_layout(THICK - S, (0.0, 0.0), 0.05)
+    p = law.packed()
+    creep = law.mu_static * normal_force_packed(S, 0.05, p)[0] / law.stick_stiffness
+    du = creep * (move[0] * t1 + move[1] * t2)
+    pos0 = pos.copy()
+    pos0[:2] -= du  # edge a moved by du over the step, edge b stayed
+    u_prev = carried * creep * t1
+    u_new = np.zeros((1, 3))
+    f, ek, ec, nc = _edge_edge_run(law, pos, vel, _NAB, pos0, u_prev, u_new)
+    assert nc == 1
+    on_a = f[:6].reshape(2, 3).sum(axis=0)
+    ft = on_a - (on_a @ _NAB) * _NAB
+    a = u_prev + du
+    pull, limit = law.stick_stiffness * np.linalg.norm(a), law.mu_static * (on_a @ _NAB)
+    pull *= ACT * AREA
+    if regime == "stick":
+        assert pull <= 0.8 * limit
+        np.testing.assert_allclose(ft, -ACT * AREA * law.stick_stiffness * a, rtol=1e-9)
+        np.testing.assert_allclose(u_new[0], a, rtol=1e-9)
+    else:
+        assert pull >= 1.25 * limit
+        # on the slip limit, opposite the trial spring; the spring handed on is the limit's
+        np.testing.assert_allclose(ft / np.linalg.norm(ft), -a / np.linalg.norm(a), atol=1e-9)
+        u_len = np.linalg.norm(u_new[0]) * law.stick_stiffness * ACT * AREA
+        assert u_len == pytest.approx(np.linalg.norm(ft), rel=1e-9)
+
+    def force(q, v):
+        return _edge_edge_run(law, q, v, _NAB, pos0, u_prev)[0]
+
+    dk, dc = _central_differences(force, pos, vel)
+    return _compare(ek, dk, RTOL), _compare(ec, dc, RTOL)
+
+
+@pytest.mark.parametrize("case", list(EDGE_EDGE_STICK_CASES))
+def test_edge_edge_stick_tangents_match_finite_differences(case):
+    edge_edge_stick_errors(case)
 
 
 def test_edge_edge_pushes_back_to_the_side_it_started_on():

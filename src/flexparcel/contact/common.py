@@ -2,9 +2,18 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
-__all__ = ["StickAnchors", "AnchoredHistory", "ElasticSlipHistory", "pair_blocks", "check_history"]
+__all__ = [
+    "StickAnchors",
+    "AnchoredHistory",
+    "ElasticSlipHistory",
+    "pair_blocks",
+    "check_history",
+    "set_digest",
+]
 
 
 class StickAnchors:
@@ -95,3 +104,13 @@ def pair_blocks(count: int, width: int):
     width) and DOF numbers (count, width)."""
     return (np.zeros((count, width, width)), np.zeros((count, width, width)),
             np.zeros((count, width), dtype=np.int64))  # fmt: skip
+
+
+def set_digest(kind: str, *arrays) -> str:
+    """Identity of a contact set's data (node numbers already mapped), for history keys."""
+    h = hashlib.sha256(kind.encode())
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()[:32]

@@ -53,7 +53,7 @@ import numba as nb
 import numpy as np
 
 from flexparcel.contact.broadphase import point_triangle_candidates
-from flexparcel.contact.common import StickAnchors, check_history, pair_blocks
+from flexparcel.contact.common import StickAnchors, check_history, pair_blocks, set_digest
 from flexparcel.contact.geometry import (
     point_triangle,
     point_triangle_contact_derivs,
@@ -415,18 +415,6 @@ def point_face_candidates(points, owners, tris, thickness, ctx, start):
     return pairs, face_sides(pairs, points, tris, start.positions)
 
 
-def _set_digest(kind: str, *arrays) -> str:
-    """Identity of a contact set's data (node numbers already mapped), for history keys."""
-    import hashlib
-
-    h = hashlib.sha256(kind.encode())
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        h.update(str((a.dtype.str, a.shape)).encode())
-        h.update(a.tobytes())
-    return h.hexdigest()[:32]
-
-
 class NodeFaceSet(ContactSet):
     """Node-to-face contact: nodes against triangles (shell faces or solid boundary faces),
     both sides of a face free, contact distance ``thickness`` [m]; ``areas`` (N,): each slave
@@ -490,7 +478,7 @@ class NodeFaceSet(ContactSet):
 
     def history_rows(self, numbering) -> np.ndarray:
         # a node's anchor belongs to this very set: the same nodes against the same faces
-        digest = _set_digest(self.kind, numbering[self.node], numbering[self.triangles],
+        digest = set_digest(self.kind, numbering[self.node], numbering[self.triangles],
                              np.array(self.thickness))  # fmt: skip
         return row_keys(f"{self.kind}:{digest}", numbering[self.node][:, None])
 

@@ -474,8 +474,9 @@ def add_deflector_contact(
     half its thickness; stations every :data:`TIP_STATION_SPACING`, each segment of
     :data:`TIP_SEGMENT_LENGTH` carrying the law once), and those edges' segments against the
     shell's element edges (edge-to-edge, the same thickness, the law once per crossing pair,
-    regularised friction: :mod:`flexparcel.contact.edge_edge`). Node-to-face contact alone
-    lets a face pressed on the tip pass through it between its nodes, and the tip's stations
+    the stick model where ``law`` has one: :mod:`flexparcel.contact.edge_edge`). Node-to-face
+    contact alone lets a face pressed on the tip pass through it between its nodes, and the
+    tip's stations
     let an element edge wrapped round the tip pass between them (in 2 s runs of the paper
     scene without them, packaging edges came up to 1.2 mm inside the contact thickness
     there); in one such run a film hanging over the belt edge at the second deflector's root
