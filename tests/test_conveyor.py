@@ -218,7 +218,7 @@ def test_conveyor_parts_geometry_and_face_meshes():
         along = (model.positions0[verts] - g.root) @ g.tangent
         assert along.min() == pytest.approx(-scene.deflector_overhang, abs=1e-12)
         assert along.max() == pytest.approx(g.length)
-        assert abs(g.outer_end[1]) == pytest.approx(0.3 + 0.1 / np.sqrt(2.0))
+        assert abs(g.outer_end[1]) == pytest.approx(0.3 + scene.deflector_overhang / np.sqrt(2.0))
         assert model.fixed[verts].all() and not np.isin(verts, model.slave_nodes).any()
     for g, ends in zip(parts.deflectors, parts.deflector_ends, strict=True):
         # the outer end edge: bottom to top, overhang beyond the belt edge
@@ -287,13 +287,13 @@ def test_shell_sheet_is_stopped_by_the_deflector_face_mesh():
     assert resp.deflector_contact_time[0] > 0.0 and resp.deflector_contact_time[1] == 0.0
 
 
-@pytest.mark.parametrize("overhang", [0.1, 0.0])
+@pytest.mark.parametrize("overhang", [0.25, 0.1, 0.0])
 def test_packaging_beside_the_belt_meets_the_deflector_overhang(overhang):
     # A 40 mm sheet of the KP/BW material lies beside the belt edge (y = 0.31-0.35 m) and is
     # carried there: the belt is an unbounded plane (belt_edge_radius = 0), standing in for
     # packaging hanging over the edge while its part on the belt drags it, 21 mm upstream of
-    # the first deflector's plane. With the sheet running on 0.1 m past the belt edge (the
-    # default) the belt drags it into the overhang, which stops it and turns it towards
+    # the first deflector's plane. With the sheet running on past the belt edge (0.25 m, the
+    # default, or 0.1 m) the belt drags it into the overhang, which stops it and turns it towards
     # the centre line; with no overhang the deflector ends at the belt edge (y = 0.3 m) and
     # the sheet passes its free end (in the paper's scene KP's film went round it).
     scene = ConveyorScene(deflector_overhang=overhang, belt_edge_radius=0.0)

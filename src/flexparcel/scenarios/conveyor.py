@@ -5,7 +5,7 @@ World frame: the belt runs along +x from x = 0 to x = ``belt_length``, its surfa
 its centre line is y = 0, it spans |y| <= ``belt_width`` / 2. Deflector k starts at the belt
 edge (its *root*, at x = ``deflector_x[k]``) and runs downstream at ``deflector_angle_deg`` to
 the belt direction until its *tip*, ``centre_gap`` short of the centre line; upstream of the
-root the sheet runs on ``deflector_overhang`` (0.1 m) beyond the belt edge, where a real
+root the sheet runs on ``deflector_overhang`` (0.25 m) beyond the belt edge, where a real
 deflector is fixed to the conveyor's frame. The first deflector comes from the y > 0 side,
 the next from y < 0, and so on.
 
@@ -212,6 +212,11 @@ class ConveyorScene:
             are "fixed in space"): with the sheet ending at the belt edge, packaging hanging
             over the edge goes round its free end (measured in the paper's scene, KP at the
             second deflector), which a real deflector fixed to the frame does not allow.
+            The default 0.25 m puts the free end 0.177 m beyond the belt edge (at 45 deg),
+            out of reach of packaging that still rests on the belt: a consignment more than
+            half its length (at most 160 mm, Table 2) beyond the edge falls off. With 0.1 m
+            (0.071 m) PB's film wrapped the free end in the paper's scene and jammed at
+            1.074 s (docs/scenarios.md).
         side_guides: add unbounded guide planes along both belt edges.
         belt_edge_radius: [m] in [0, 0.05]: the belt is a slab of the belt's length and
             width with its edges rounded by this radius (half the slab's thickness; module
@@ -230,7 +235,7 @@ class ConveyorScene:
     centre_gap: float = 0.03
     deflector_height: float = 0.1
     deflector_thickness: float = 0.002
-    deflector_overhang: float = 0.1
+    deflector_overhang: float = 0.25
     side_guides: bool = False
     belt_edge_radius: float = 0.01
     transfer: BeltTransfer | None = None
