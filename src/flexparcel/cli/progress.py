@@ -249,7 +249,8 @@ class PhaseProgress(_Bar):
     is), so each bar runs to the phase's latest end from ``settings``
     (:class:`~flexparcel.consignments.assembly.AssemblySettings`) and its ETA reads "<=":
     opening until ``max_opening_time``; settling until ``max_settle_time`` after the closing.
-    The closing reports once, when it is done.
+    The closing reports at every step (it is one chunk that took 20 min for KP at 10 mm, with
+    no sign of life before); its bar shows the time reached, its end being the assembly's.
     """
 
     def __init__(self, label: str, *, settings=None, enabled: bool = True, **kwargs) -> None:
@@ -269,7 +270,7 @@ class PhaseProgress(_Bar):
             return max(t, float(st.max_opening_time))
         if phase == "settling":
             return max(t, self._closed_at + float(st.max_settle_time))
-        return t  # closing: reported once, at its end
+        return t  # closing: the time reached (its last call is its end)
 
     def __call__(self, phase: str, t: float) -> None:
         if phase == "closing":
