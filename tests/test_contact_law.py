@@ -338,6 +338,43 @@ def test_stick_tangent_while_slipping_keeps_the_force(du):
     assert not got[3].any() and not got[4].any()
 
 
+@pytest.mark.parametrize("scale", [1.2, 1.9, 4.0, 400.0])
+def test_symmetric_tangent_while_slipping_keeps_the_force(scale):
+    # P_SLIP_TANGENT = 2 ("symmetric"): force, elastic displacement and slip flag are those
+    # of the consistent return map bit for bit; the tangent is the consistent
+    # -mu_k F_N (I - n n^T)/|a| plus -(1 - w) k_t n n^T along the slip direction n = a/|a|,
+    # w = min(1, k_t |a| / (mu_s F_N) - 1), without the F_N and mu(v) terms; exactly
+    # symmetric
+    law = ContactLaw(stiffness=1e5, mu_static=MU_S, mu_dynamic=MU_D, v_static=V_S,
+                     v_dynamic=V_D, stick_stiffness=K_T)  # fmt: skip
+    p = law.packed()
+    q = p.copy()
+    q[P_SLIP_TANGENT] = 2.0
+    f_n = 5.0
+    n = _vec(1.0, (0.3, 1.0, 0.1))
+    a = scale * MU_S * f_n / K_T * n  # trial elastic displacement, scale x the stick limit
+    vt = 0.5 * (V_S + V_D) * n  # on the mu(v) slope: the consistent tangent has a dF/dv term
+    ref = anchored_friction(a, vt, f_n, p)
+    got = anchored_friction(a, vt, f_n, q)
+    for x, y in zip(ref[:2], got[:2], strict=True):
+        np.testing.assert_array_equal(x, y)
+    assert ref[3].any() and ref[4].any()
+    w = min(1.0, scale - 1.0)
+    want = ref[2] - (1.0 - w) * K_T * np.outer(n, n)
+    np.testing.assert_allclose(got[2], want, rtol=1e-12, atol=1e-12 * K_T)
+    np.testing.assert_array_equal(got[2], got[2].T)
+    assert not got[3].any() and not got[4].any()
+    if scale < 2.0:  # near the onset: continuous with the stick tangent -k_t I
+        np.testing.assert_allclose(got[2] @ n, -(1.0 - w) * K_T * n, rtol=1e-12)
+    # the consistent part of it against finite differences of the force, across n
+    t = np.cross(n, [0.0, 0.0, 1.0])
+    t /= np.linalg.norm(t)
+    h = 1e-7 * np.linalg.norm(a)
+    fd = (anchored_friction(a + h * t, vt, f_n, p)[0]
+          - anchored_friction(a - h * t, vt, f_n, p)[0]) / (2 * h)  # fmt: skip
+    np.testing.assert_allclose(got[2] @ t, fd, rtol=1e-6, atol=1e-9 * K_T)
+
+
 def test_stick_model_limits_creep_and_breaks_loose():
     # A tangential load below mu_s F_N is carried by the spring; the displacement is bounded by
     # mu_s F_N / k_t whatever the number of steps (no creep, unlike eq. 8 where mu(0) = 0).

@@ -150,7 +150,9 @@ def test_belt_drags_box_along_a_45_degree_deflector_at_the_closed_form_speed():
     assert resp.exit_time is None
 
 
-@pytest.mark.parametrize("friction_tangent, newton_tol", [("consistent", 1e-2), ("stick", 1e-4)])
+@pytest.mark.parametrize(
+    "friction_tangent, newton_tol", [("consistent", 1e-2), ("stick", 1e-4), ("symmetric", 1e-2)]
+)
 def test_stick_model_sliding_along_a_deflector_with_either_friction_tangent(
     friction_tangent, newton_tol
 ):

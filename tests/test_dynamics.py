@@ -210,7 +210,8 @@ def test_newton_cap_growth_out_of_range_is_refused():
 
 
 def test_friction_tangent_option_is_validated_and_leaves_the_callers_laws():
-    with pytest.raises(ValueError, match="friction_tangent must be 'consistent' or 'stick'"):
+    match = "friction_tangent must be 'consistent', 'stick' or 'symmetric'"
+    with pytest.raises(ValueError, match=match):
         fp.IntegratorOptions(friction_tangent="exact")
     from flexparcel.contact.law import P_SLIP_TANGENT, ContactLaw
     from flexparcel.integrate.dynamic import GeneralizedAlpha
@@ -222,4 +223,6 @@ def test_friction_tangent_option_is_validated_and_leaves_the_callers_laws():
     model = b.finalize()
     integ = GeneralizedAlpha(model, fp.IntegratorOptions(friction_tangent="stick"))
     assert np.all(integ.model.contact_laws[:, P_SLIP_TANGENT] == 1.0)
+    integ = GeneralizedAlpha(model, fp.IntegratorOptions(friction_tangent="symmetric"))
+    assert np.all(integ.model.contact_laws[:, P_SLIP_TANGENT] == 2.0)
     assert np.all(model.contact_laws[:, P_SLIP_TANGENT] == 0.0)  # the caller's model

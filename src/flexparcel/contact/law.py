@@ -67,7 +67,8 @@ Packed parameter layout (``float64`` array of length :data:`PACKED_SIZE`)::
     12     P_MAX_PEN    -        m                            max penetration (inf if none)
     13     P_K_T        k_t      N/m**3                       stick stiffness per area (0: none)
     14     P_SLIP_TANGENT -      -                            Newton tangent while slipping:
-                                                              0 = consistent, 1 = stick (-k_t I)
+                                                              0 = consistent, 1 = stick (-k_t I),
+                                                              2 = symmetric (see _return_map)
 
 The kernels take these per-area values and a per-point scale (schedule factor times tributary
 area [m**2]) from the contact set; the scalar kernels below are written per point (c in N/m**m_s)
@@ -149,6 +150,8 @@ P_V_D = 11
 P_MAX_PEN = 12
 P_K_T = 13
 P_SLIP_TANGENT = 14
+SLIP_TANGENT_CODES = {"consistent": 0.0, "stick": 1.0, "symmetric": 2.0}
+"""``IntegratorOptions.friction_tangent`` -> the value of ``P_SLIP_TANGENT`` in a packed law."""
 PACKED_SIZE = PACKED_LAW_SIZE  # the ground sizes empty law tables with it
 
 # mm -> m. RecurDyn's N-kg-mm-s unit set differs from SI only in length.
@@ -798,13 +801,13 @@ def stick_friction(
         Stick: dF_T/d(du_t) = -k_t I. Slip: -F_N [mu_k (I - n n^T)/|a| + n (dmu_k/dv)
         du_t^T/(|du_t| dt)] with n = a/|a|.
     """
-    return _stick_return_map(u_el_prev, du_t, f_n, k_t, mu_s, mu_d, v_s, v_d, dt, False)
+    return _stick_return_map(u_el_prev, du_t, f_n, k_t, mu_s, mu_d, v_s, v_d, dt, 0.0)
 
 
 @nb.njit(cache=True)
-def _stick_return_map(u_el_prev, du_t, f_n, k_t, mu_s, mu_d, v_s, v_d, dt, stick_tangent):
+def _stick_return_map(u_el_prev, du_t, f_n, k_t, mu_s, mu_d, v_s, v_d, dt, slip_tangent):
     f, u_new, slipping, dfd, dfv, dfn = _return_map(
-        u_el_prev + du_t, du_t / dt, f_n, k_t, mu_s, mu_d, v_s, v_d, stick_tangent
+        u_el_prev + du_t, du_t / dt, f_n, k_t, mu_s, mu_d, v_s, v_d, slip_tangent
     )
     # the slip speed is |du_t| / dt: d/d(du_t) = d/da + d/d(speed vector) / dt
     return f, u_new, slipping, dfd + dfv / dt, dfn
@@ -815,7 +818,7 @@ def stick_friction_packed(
     u_el_prev: np.ndarray, du_t: np.ndarray, f_n: float, dt: float, p: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, bool, np.ndarray, np.ndarray]:
     """:func:`stick_friction` with parameters from :meth:`ContactLaw.packed` (needs k_t > 0);
-    the tangent while slipping is the stick tangent -k_t I where ``p[P_SLIP_TANGENT]`` is 1."""
+    the tangent while slipping is set by ``p[P_SLIP_TANGENT]`` (see :func:`_return_map`)."""
     return _stick_return_map(
         u_el_prev,
         du_t,
@@ -826,7 +829,7 @@ def stick_friction_packed(
         p[P_V_S],
         p[P_V_D],
         dt,
-        p[P_SLIP_TANGENT] != 0.0,
+        p[P_SLIP_TANGENT],
     )
 
 
@@ -859,7 +862,7 @@ def anchored_friction(
         dF_T/da [N/m] (3, 3), dF_T/dvt [N s/m] (3, 3), dF_T/dF_N [-] (3,).
     """
     f, u_new, _, dfa, dfv, dfn = _return_map(
-        a, vt, f_n, p[P_K_T], p[P_MU_S], p[P_MU_D], p[P_V_S], p[P_V_D], p[P_SLIP_TANGENT] != 0.0
+        a, vt, f_n, p[P_K_T], p[P_MU_S], p[P_MU_D], p[P_V_S], p[P_V_D], p[P_SLIP_TANGENT]
     )
     return f, u_new, dfa, dfv, dfn
 
@@ -883,16 +886,28 @@ def contact_friction(stick, e, n, vt, f_n, p):
 
 
 @nb.njit(cache=True)
-def _return_map(a, v, f_n, k_t, mu_s, mu_d, v_s, v_d, stick_tangent):
+def _return_map(a, v, f_n, k_t, mu_s, mu_d, v_s, v_d, slip_tangent):
     """The stick model's return map for the trial elastic displacement ``a`` (3,) [m], with
     ``v`` (3,) [m/s] the slip velocity that sets mu_k while slipping. Returns (F_T, new elastic
     displacement, slipping, dF_T/da, dF_T/dv, dF_T/dF_N).
 
-    With ``stick_tangent`` the derivatives while slipping are those of sticking (dF_T/da =
-    -k_t I, nothing else): the force is unchanged, Newton then converges linearly on slipping
-    contacts but does not chase the consistent tangent's -mu F_N (I - n n^T)/|a|, which
-    flips with the slip direction n of a contact that barely slips (a quasi-Newton choice:
-    Wriggers, *Computational Contact Mechanics*, 2006, on the non-symmetric friction tangent).
+    ``slip_tangent`` (``P_SLIP_TANGENT``) picks the derivatives while slipping; the force is
+    the same for all three (quasi-Newton choices: Wriggers, *Computational Contact
+    Mechanics*, 2006, on the non-symmetric friction tangent):
+
+    * 0, consistent: dF_T/da = -mu F_N (I - n n^T)/|a|, with the F_N and mu(v) terms;
+    * 1, stick: -k_t I as while sticking, nothing else. Newton converges linearly on slipping
+      contacts but does not chase the consistent term, which flips with the slip direction
+      n of a contact that barely slips;
+    * 2, symmetric: -mu_k F_N (I - n n^T)/|a| - (1 - w) k_t n n^T with
+      w = min(1, k_t |a| / (mu_s F_N) - 1): the consistent tangent without its F_N and
+      mu(v) terms (so symmetric: Cholesky), and along n a stiffness that falls from k_t at
+      the onset of slip to the consistent 0 once the trial displacement is twice the stick
+      limit, so a contact at the onset does not switch between k_t and 0 from one iterate to
+      the next. Along n the stick tangent's k_t stands for a force that does not grow: a
+      body on many slipping contacts (a box sliding in its envelope) gets a tangent
+      sum(k_t A) far above its inertia M / (beta h^2) along its slide, and each Newton
+      correction moves it a small fraction of the way.
     """
     a_norm = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
     f = np.empty(3)
@@ -913,7 +928,17 @@ def _return_map(a, v, f_n, k_t, mu_s, mu_d, v_s, v_d, stick_tangent):
         ni = a[i] / a_norm
         f[i] = -mu_k * f_n * ni
         u_new[i] = mu_k * f_n * ni / k_t
-        if stick_tangent:
+        if slip_tangent == 2.0:
+            # the consistent tangent's symmetric part, with a stiffness along n that fades
+            # from k_t at the onset of slip to 0 at twice the stick limit
+            limit = mu_s * f_n
+            w = 1.0 if limit <= 0.0 else min(1.0, k_t * a_norm / limit - 1.0)
+            across = mu_k * f_n / a_norm
+            for j in range(3):
+                nn = ni * (a[j] / a_norm)  # exactly symmetric
+                dfa[i, j] = -across * ((1.0 if i == j else 0.0) - nn) - (1.0 - w) * k_t * nn
+            continue
+        if slip_tangent != 0.0:
             dfa[i, i] = -k_t
             continue
         dfn[i] = -mu_k * ni

@@ -38,7 +38,7 @@ import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 
-from flexparcel.contact.law import P_SLIP_TANGENT
+from flexparcel.contact.law import P_SLIP_TANGENT, SLIP_TANGENT_CODES
 from flexparcel.elements.rotations import (
     apply_spins,
     relative_rotation_vectors,
@@ -174,8 +174,10 @@ class IntegratorOptions:
     solution) or "pardiso"."""
     friction_tangent: str = "consistent"
     """Newton tangent of a slipping stick-model contact: "consistent" (the return map's exact
-    derivative, -mu F_N (I - n n^T)/|a| + the mu(v) term) or "stick" (-k_t I as while sticking).
-    The forces, hence the converged solution, are the same. "consistent" converges
+    derivative, -mu F_N (I - n n^T)/|a| + the mu(v) term), "stick" (-k_t I as while sticking)
+    or "symmetric" (the consistent tangent without its F_N and mu(v) terms, and a smooth
+    onset of slip: :func:`flexparcel.contact.law._return_map`). The forces, hence the
+    converged solution, are the same. "consistent" converges
     quadratically once the slip directions settle, but a contact that barely slips flips its
     direction n between iterations and the consistent term flips with it, so Newton cycles
     and the step shrinks; "stick" converges linearly instead, so the state is as accurate as
@@ -189,7 +191,12 @@ class IntegratorOptions:
     residual test, consignment options: the KP/BW swing at 25 mm, first 0.1 s, "stick" 291
     steps, 1,689 iterations, 15.8 s against 729, 3,297, 35.0 s; but the 10 mm envelope drop
     (0.3 s) "stick" 387 steps, 1,621 iterations, 113 s against 225, 847, 60 s. So
-    "consistent" stays the default."""
+    "consistent" stays the default. Since the momentum test (``newton_momentum_tol``) the
+    swing's "stick" is slow: along its slide the box in KP/BW's envelope sees a stiffness of
+    sum(k_t A) against its inertia, Newton corrects its sliding a little per iteration and
+    the momentum test vetoes step after step. "symmetric" drops k_t along the slip direction
+    and stays symmetric (Cholesky); measured in :func:`~flexparcel.scenarios.consignment_tests.
+    swing_options`."""
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.rho_inf <= 1.0:
@@ -222,9 +229,9 @@ class IntegratorOptions:
                 "IntegratorOptions.impact_limit must be 'rigid', 'all' or 'off', "
                 f"got {self.impact_limit!r}"
             )
-        if self.friction_tangent not in ("consistent", "stick"):
+        if self.friction_tangent not in ("consistent", "stick", "symmetric"):
             raise ValueError(
-                "IntegratorOptions.friction_tangent must be 'consistent' or 'stick', "
+                "IntegratorOptions.friction_tangent must be 'consistent', 'stick' or 'symmetric', "
                 f"got {self.friction_tangent!r}"
             )
         if self.tangent not in ("material", "consistent"):
@@ -318,8 +325,8 @@ class GeneralizedAlpha:
         model = copy.copy(model)
         model.contact_laws = model.contact_laws.copy()
         self.model = model
-        if self.opt.friction_tangent == "stick" and model.contact_laws.size:
-            model.contact_laws[:, P_SLIP_TANGENT] = 1.0
+        if self.opt.friction_tangent != "consistent" and model.contact_laws.size:
+            model.contact_laws[:, P_SLIP_TANGENT] = SLIP_TANGENT_CODES[self.opt.friction_tangent]
         rho = self.opt.rho_inf
         self.am = (2.0 * rho - 1.0) / (rho + 1.0)
         self.af = rho / (rho + 1.0)
