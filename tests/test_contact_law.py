@@ -310,16 +310,22 @@ def test_stick_return_map_and_consistent_tangent(label, u_prev, du, expect_slip)
     np.testing.assert_allclose(dfn, fd_n, rtol=1e-7, atol=1e-12)
 
 
+def _packed_with_slip_tangent(code: float) -> tuple[np.ndarray, np.ndarray]:
+    """A stick-model law packed with the consistent slip tangent and with ``code``."""
+    law = ContactLaw(stiffness=1e5, mu_static=MU_S, mu_dynamic=MU_D, v_static=V_S,
+                     v_dynamic=V_D, stick_stiffness=K_T)  # fmt: skip
+    p = law.packed()
+    q = p.copy()
+    q[P_SLIP_TANGENT] = code
+    return p, q
+
+
 @pytest.mark.parametrize("du", [_vec(5e-7, (0.2, 1, 0)), _vec(5e-5, (0.3, 1, 0.1))])
 def test_stick_tangent_while_slipping_keeps_the_force(du):
     # P_SLIP_TANGENT = 1 changes only the derivatives of a slipping contact (to those of
     # sticking, -k_t I, without the F_N and mu(v) terms); force, elastic displacement and
     # the slip flag are those of the consistent return map, bit for bit
-    law = ContactLaw(stiffness=1e5, mu_static=MU_S, mu_dynamic=MU_D, v_static=V_S,
-                     v_dynamic=V_D, stick_stiffness=K_T)  # fmt: skip
-    p = law.packed()
-    q = p.copy()
-    q[P_SLIP_TANGENT] = 1.0
+    p, q = _packed_with_slip_tangent(1.0)
     u0 = _vec(1.25e-4, (1, 0, 0))
     ref = stick_friction_packed(u0, du, 5.0, DT, p)
     got = stick_friction_packed(u0, du, 5.0, DT, q)
@@ -345,11 +351,7 @@ def test_symmetric_tangent_while_slipping_keeps_the_force(scale):
     # -mu_k F_N (I - n n^T)/|a| plus -(1 - w) k_t n n^T along the slip direction n = a/|a|,
     # w = min(1, k_t |a| / (mu_s F_N) - 1), without the F_N and mu(v) terms; exactly
     # symmetric
-    law = ContactLaw(stiffness=1e5, mu_static=MU_S, mu_dynamic=MU_D, v_static=V_S,
-                     v_dynamic=V_D, stick_stiffness=K_T)  # fmt: skip
-    p = law.packed()
-    q = p.copy()
-    q[P_SLIP_TANGENT] = 2.0
+    p, q = _packed_with_slip_tangent(2.0)
     f_n = 5.0
     n = _vec(1.0, (0.3, 1.0, 0.1))
     a = scale * MU_S * f_n / K_T * n  # trial elastic displacement, scale x the stick limit
