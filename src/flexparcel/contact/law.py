@@ -924,16 +924,16 @@ def _return_map(a, v, f_n, k_t, mu_s, mu_d, v_s, v_d, slip_tangent):
     # Slip; |a| > 0 because k_t |a| > mu_s F_N >= 0.
     speed = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
     mu_k, dmu_k = slip_friction_coefficient(speed, mu_s, mu_d, v_s, v_d)
+    # "symmetric": the consistent tangent's symmetric part, with a stiffness along n that
+    # fades from k_t at the onset of slip to 0 at twice the stick limit (once per contact)
+    limit = mu_s * f_n
+    w = 1.0 if limit <= 0.0 else min(1.0, k_t * a_norm / limit - 1.0)
+    across = mu_k * f_n / a_norm
     for i in range(3):
         ni = a[i] / a_norm
         f[i] = -mu_k * f_n * ni
         u_new[i] = mu_k * f_n * ni / k_t
         if slip_tangent == 2.0:
-            # the consistent tangent's symmetric part, with a stiffness along n that fades
-            # from k_t at the onset of slip to 0 at twice the stick limit
-            limit = mu_s * f_n
-            w = 1.0 if limit <= 0.0 else min(1.0, k_t * a_norm / limit - 1.0)
-            across = mu_k * f_n / a_norm
             for j in range(3):
                 nn = ni * (a[j] / a_norm)  # exactly symmetric
                 dfa[i, j] = -across * ((1.0 if i == j else 0.0) - nn) - (1.0 - w) * k_t * nn

@@ -229,10 +229,11 @@ class IntegratorOptions:
                 "IntegratorOptions.impact_limit must be 'rigid', 'all' or 'off', "
                 f"got {self.impact_limit!r}"
             )
-        if self.friction_tangent not in ("consistent", "stick", "symmetric"):
+        if self.friction_tangent not in SLIP_TANGENT_CODES:
+            names = [repr(k) for k in SLIP_TANGENT_CODES]
             raise ValueError(
-                "IntegratorOptions.friction_tangent must be 'consistent', 'stick' or 'symmetric', "
-                f"got {self.friction_tangent!r}"
+                f"IntegratorOptions.friction_tangent must be {', '.join(names[:-1])} or "
+                f"{names[-1]}, got {self.friction_tangent!r}"
             )
         if self.tangent not in ("material", "consistent"):
             raise ValueError(
