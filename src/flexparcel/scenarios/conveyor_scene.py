@@ -1026,9 +1026,14 @@ def conveyor_options() -> IntegratorOptions:
     not used: it halved the first 0.01 s of the four (SuperLU) but took 776 s against 703 s
     over the first 0.05 s (839 steps of 6.5 Newton iterations against 2,098 of 2.2), its
     linear convergence using up the Newton tolerance (BW's centroid 0.7 mm apart at
-    0.05 s). Reusing the last factorisation as a GMRES preconditioner (``krylov_reuse``)
-    does not pay: on PB it refactorised at 1,594 of 1,606 Newton iterations, the contact set
-    changing between them."""
+    0.05 s). Nor is the symmetric one (``"symmetric"``, the swing's and the drops' choice):
+    from the 2 s run's state at 1.82 s (the four consignments touching each other and the
+    deflectors, one model, 0.01 s) it took 727 steps and 3,005 Newton iterations against 539
+    and 1,931 with the consistent tangent (its contact state reset at the start, the same for
+    both; the likely reason, not isolated: films that slide under a changing pressure, whose
+    F_N coupling it leaves out). Reusing the last factorisation as a GMRES preconditioner
+    (``krylov_reuse``) does not pay: on PB it refactorised at 1,594 of 1,606 Newton
+    iterations, the contact set changing between them."""
     return replace(
         consignment_options(),
         newton_relaxation=False,
