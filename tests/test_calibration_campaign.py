@@ -72,9 +72,9 @@ def test_campaign_dry_run_prints_the_plan(tmp_path, capsys):
     assert "design    drop_vertical    -       500" in out
     assert "design    drop_horizontal  -       100" in out
     assert "total: 831 runs" in out
-    assert "unknown \u2014 run one" in out  # the vertical drop at 10 mm is not measured
+    assert "unknown \u2014 run one" in out  # the vertical drop: no estimate stated
     # the swing and the horizontal drop at 10 mm: their measured wall times, stated
-    assert "design    swing            -       100   21.2 min" in out
+    assert "design    swing            -       100   80.5 min" in out  # 4,833 s
     assert not (tmp_path / "s.sqlite").exists()  # a dry run creates nothing
     assert main([*args, "--budget", "0.1"]) == 0
     out = capsys.readouterr().out
