@@ -214,6 +214,10 @@ CASES: list[Case] = [
          r"1\.17\), got -1\.0",
          _cli_case(lambda tmp: ["run", "swing", "--consignment", "KPBW", "--air-drag", "-1",
                                 "--out", str(tmp / "out")], C), 2),  # fmt: skip
+    Case("`flexparcel run conveyor --membrane tension-field` (the tests' option)",
+         r"run: error: --membrane applies to the swing and the drops, not the conveyor",
+         _cli_case(lambda tmp: ["run", "conveyor", "--membrane", "tension-field",
+                                "--out", str(tmp / "out")], C), 2),  # fmt: skip
     Case("`flexparcel run swing --hold` (the hold is the vertical drop's)",
          r"run: error: --hold applies to drop-vertical only, not swing",
          _cli_case(lambda tmp: ["run", "swing", "--consignment", "KPBW", "--hold",

@@ -87,6 +87,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--air-drag", type=float, default=None, metavar="CD",
                    help="swing and drops: drag coefficient of the envelope in still air "
                    "(a flat plate: 1.17); default none, as the paper's model")  # fmt: skip
+    p.add_argument("--membrane", choices=("elastic", "tension-field"), default=None,
+                   help="swing and drops: the packaging's membrane law in the test; "
+                   "tension-field lets the film wrinkle (docs/physics.md); default: the "
+                   "snapshot's (elastic for the shipped snapshots)")  # fmt: skip
     p.add_argument("--out", type=Path, required=True, help="output directory")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     g = p.add_argument_group("conveyor")
@@ -203,10 +207,14 @@ def run(args: argparse.Namespace) -> int:
     if args.test == "conveyor":
         if args.air_drag is not None:
             raise ValueError("--air-drag applies to the swing and the drops, not the conveyor")
+        if args.membrane is not None:
+            raise ValueError("--membrane applies to the swing and the drops, not the conveyor")
         if args.hold:
             raise ValueError("--hold applies to drop-vertical only, not conveyor")
         return _run_conveyor(args)
     options = {} if args.air_drag is None else {"air_drag": args.air_drag}
+    if args.membrane is not None:
+        options["membrane"] = args.membrane
     if args.hold:
         if args.test != "drop-vertical":
             raise ValueError(f"--hold applies to drop-vertical only, not {args.test}")

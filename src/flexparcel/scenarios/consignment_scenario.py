@@ -17,12 +17,13 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from flexparcel.model.materials import CoarseMeshWarning
+from flexparcel.model.materials import MEMBRANE_LAWS, CoarseMeshWarning
 from flexparcel.scenarios.base import (
     T_END,
     PictureWriter,
@@ -101,13 +102,33 @@ def warn_if_coarse(test: str, element_size_mm: float) -> None:
 
 class ConsignmentTest(ScenarioBase):
     """Base of a test on one consignment. Subclasses set :attr:`name`, :attr:`t_end`,
-    :attr:`dt_out` and implement :meth:`build`, :meth:`_test_run` and :meth:`responses`."""
+    :attr:`dt_out` and implement :meth:`build`, :meth:`_test_run` and :meth:`responses`;
+    they take the snapshot through :meth:`snapshot`, which applies :attr:`membrane`."""
 
     parameters = TEST_PARAMETERS
     t_end: float = 1.0
     """Default simulated time [s]."""
     dt_out: float = 0.01
     """Output interval [s] (at most t_end / :data:`MIN_FRAMES`)."""
+    membrane: str | None = None
+    """The packaging's membrane law for the test (one of
+    :data:`~flexparcel.model.materials.MEMBRANE_LAWS`), or None: the law the snapshot was
+    assembled with. "tension-field" lets the film wrinkle in the test while it starts from
+    an elastic-settled snapshot (docs/scenarios.md, the swing at 10 mm)."""
+
+    def set_membrane(self, membrane: str | None) -> None:
+        """Check and set :attr:`membrane`."""
+        if membrane is not None and membrane not in MEMBRANE_LAWS:
+            raise ValueError(f"membrane must be one of {'|'.join(MEMBRANE_LAWS)}, got {membrane!r}")
+        self.membrane = membrane
+
+    def snapshot(self, consignment: Snapshot | Mapping[str, Snapshot]) -> Snapshot:
+        """The one snapshot of the test, its packaging given :attr:`membrane` where set."""
+        snap = single_snapshot(consignment, self.name)
+        if self.membrane is None or snap.build.material.membrane == self.membrane:
+            return snap
+        material = replace(snap.build.material, membrane=self.membrane)
+        return replace(snap, build=replace(snap.build, material=material))
 
     def defaults(self, build: ConsignmentBuild | None = None) -> dict[str, float | None]:
         """Table 6's values; with ``build``, its packaging's own Young's modulus [MPa] and
@@ -136,7 +157,7 @@ class ConsignmentTest(ScenarioBase):
         t_end: float | None = None,
         progress: Any = None,
     ) -> ScenarioResult:
-        snap = single_snapshot(consignment, self.name)
+        snap = self.snapshot(consignment)
         warn_if_coarse(self.name, snap.build.element_size * 1e3)
         p = self.resolve(parameters, snap.build)
         t = self.t_end if t_end is None else T_END.check(t_end)
@@ -144,7 +165,7 @@ class ConsignmentTest(ScenarioBase):
         run = self._test_run(snap, p, t, dt_out, progress)
         size_mm = snap.build.element_size * 1e3
         settings = {"t_end_s": t, "dt_out_s": dt_out, "element_size_mm": size_mm,
-                    **self._settings()}  # fmt: skip
+                    "membrane": snap.build.material.membrane, **self._settings()}  # fmt: skip
         return ScenarioResult(self.name, dict(p), run.result, run.wall_s, run, settings)
 
     def summary(self, result: ScenarioResult) -> dict:

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from flexparcel.elements.air import check_drag_coefficient
-from flexparcel.scenarios.base import Response, ScenarioResult, single_snapshot
+from flexparcel.scenarios.base import Response, ScenarioResult
 from flexparcel.scenarios.consignment_scenario import ConsignmentTest, mm_response
 from flexparcel.scenarios.consignment_tests import (
     TestModel,
@@ -56,7 +56,8 @@ class DropScenario(ConsignmentTest):
     ``air_drag``: the envelope's drag coefficient in still air (default 0: none, the paper's
     model); ``hold``: hold the vertical drop's consignment at rest by its top end under
     gravity before the release (:mod:`flexparcel.scenarios.holding`; default None: released
-    from the snapshot as assembled, without gravity)."""
+    from the snapshot as assembled, without gravity); ``membrane``: the packaging's membrane
+    law in the test (:attr:`ConsignmentTest.membrane`; default: the snapshot's)."""
 
     description = "drop test: released from rest 200 mm above a rigid plate (paper 3.2)"
     t_end = 0.3
@@ -64,7 +65,7 @@ class DropScenario(ConsignmentTest):
 
     def __init__(self, orientation: str, *, drop_height: float = DROP_HEIGHT,
                  stick_model: bool = True, air_drag: float = 0.0,
-                 hold: DropHold | None = None):  # fmt: skip
+                 hold: DropHold | None = None, membrane: str | None = None):  # fmt: skip
         if orientation not in ("vertical", "horizontal"):
             raise ValueError(f"orientation must be 'vertical' or 'horizontal', got {orientation!r}")
         if not 0.0 < drop_height <= 10.0:
@@ -77,10 +78,11 @@ class DropScenario(ConsignmentTest):
         if hold is not None and orientation != "vertical":
             raise ValueError("hold applies to the vertical drop only")
         self.hold = hold
+        self.set_membrane(membrane)
 
     def build(self, consignment: Snapshot | Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip
-        snap = single_snapshot(consignment, self.name)
+        snap = self.snapshot(consignment)
         return drop_model(snap, self.orientation, self.resolve(parameters, snap.build),
                           drop_height=self.drop_height, stick_model=self.stick_model,
                           air_drag=self.air_drag, hold=self.hold)  # fmt: skip

@@ -15,8 +15,10 @@ finite-element code itself. Each runs its scenario (:mod:`flexparcel.scenarios.r
   ``snapshot`` (a snapshot ``.npz`` to start from; default: the cached assembly in
   ``snapshot_dir``, assembled on first use), ``snapshot_dir`` (default ``snapshots``),
   ``t_end_s`` (simulated time; default: the scenario's), ``air_drag`` (the envelope's drag
-  coefficient in still air; default 0, none, as the paper's model). Relative paths are
-  taken from the working directory of ``flexparcel calibrate``.
+  coefficient in still air; default 0, none, as the paper's model), ``membrane`` (the
+  packaging's membrane law in the test, "elastic" or "tension-field"; default: the
+  snapshot's, elastic for the shipped ones). Relative paths are taken from the working
+  directory of ``flexparcel calibrate``.
 * returns the scenario's responses in mm (``first_swing_mm``, ``second_swing_mm``;
   ``rebound_mm`` and ``com_rise_mm``; for the conveyor per consignment exit times and
   positions). A paper response the run did not reach fails the run with the scenario's
@@ -72,7 +74,10 @@ def scenario_snapshot(
     return snap
 
 
-_SETUP = {"consignment", "element_size_mm", "snapshot", "snapshot_dir", "t_end_s", "air_drag"}
+_SETUP = {
+    "consignment", "element_size_mm", "snapshot", "snapshot_dir", "t_end_s", "air_drag",
+    "membrane",
+}  # fmt: skip
 _CONVEYOR_SETUP = {"consignments", "scene", "element_size_mm", "snapshot_dir", "t_end_s", "workers"}
 
 
@@ -100,8 +105,10 @@ def _run(name: str, params: Mapping[str, float], setup: Mapping[str, object]) ->
     _check_setup(name, setup, _SETUP)
     if "consignment" not in setup and "snapshot" not in setup:
         raise ValueError(f"{name}: the setup needs 'consignment' (a preset or a TOML file)")
-    scenario = get_scenario(name, **({"air_drag": float(setup["air_drag"])}
-                                     if "air_drag" in setup else {}))  # fmt: skip
+    options = {k: setup[k] for k in ("air_drag", "membrane") if k in setup}
+    if "air_drag" in options:
+        options["air_drag"] = float(options["air_drag"])
+    scenario = get_scenario(name, **options)
     _check_parameters(name, scenario, params)
     scenario.resolve(dict(params))  # values against their ranges, before any assembly
     snap = scenario_snapshot(

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from flexparcel.elements.air import check_drag_coefficient
-from flexparcel.scenarios.base import Response, ScenarioResult, single_snapshot
+from flexparcel.scenarios.base import Response, ScenarioResult
 from flexparcel.scenarios.consignment_scenario import ConsignmentTest, mm_response
 from flexparcel.scenarios.consignment_tests import (
     JAWS,
@@ -43,7 +43,8 @@ class SwingScenario(ConsignmentTest):
     """The swing test; ``clamped_length`` [m] (default the paper's 20 mm); ``jaws``: how the
     clamp closes before the release (None: clamped where the nodes settled); ``air_drag``:
     the envelope's drag coefficient in still air (default 0: none, the paper's model; see
-    :func:`flexparcel.consignments.build.add_air_drag`)."""
+    :func:`flexparcel.consignments.build.add_air_drag`); ``membrane``: the packaging's
+    membrane law in the test (:attr:`ConsignmentTest.membrane`; default: the snapshot's)."""
 
     name = "swing"
     description = "swing test: 20 mm of the length clamped, released horizontal (paper 3.2)"
@@ -51,17 +52,19 @@ class SwingScenario(ConsignmentTest):
     dt_out = 0.005  # the swing takes ~1 s: 5 ms frames draw it smoothly
 
     def __init__(self, *, clamped_length: float = CLAMPED_LENGTH, stick_model: bool = True,
-                 jaws: JawClosing | None = JAWS, air_drag: float = 0.0):  # fmt: skip
+                 jaws: JawClosing | None = JAWS, air_drag: float = 0.0,
+                 membrane: str | None = None):  # fmt: skip
         if not 0.0 < clamped_length < 1.0:
             raise ValueError(f"clamped_length must be in (0, 1) m, got {clamped_length!r}")
         self.air_drag = check_drag_coefficient(air_drag, "air_drag (drag coefficient C_d)")
         self.clamped_length = float(clamped_length)
         self.stick_model = bool(stick_model)
         self.jaws = jaws
+        self.set_membrane(membrane)
 
     def build(self, consignment: Snapshot | Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip
-        snap = single_snapshot(consignment, self.name)
+        snap = self.snapshot(consignment)
         p = self.resolve(parameters, snap.build)
         return swing_model(snap, p, clamped_length=self.clamped_length,
                            stick_model=self.stick_model, jaws=self.jaws,
