@@ -27,6 +27,15 @@ def _missing_simulator(params, **setup):
     return {"other": 1.0}
 
 
+class _Outcome(ValueError):
+    retryable = False  # as flexparcel.scenarios.simulators.ResponseNotReached
+
+
+@register_simulator("test-not-reached", replace=True)
+def _not_reached_simulator(params, **setup):
+    raise _Outcome("rebound_mm not reached: did not touch the plate")
+
+
 def swing(E, beta=1e-3, **setup):
     return RunSpec(
         "analytic",
@@ -149,3 +158,24 @@ def test_crashed_worker_process_is_recorded_and_retried(tmp_path):
         assert run["status"] == "done" and run["attempts"] == 2
         assert "worker process died" in store.attempts(keys[0])[0]["error"]
         assert all(r["status"] == "done" for r in store.get_runs(keys))
+
+
+def test_a_failure_that_is_the_simulators_outcome_is_not_retried(tmp_path):
+    # a response not reached is the model's outcome: every attempt would cost a whole FE run
+    # and end the same, so the run fails at once, and a resumed campaign leaves it failed
+    from flexparcel.calibration.execution import NOT_RETRIED
+    from flexparcel.scenarios.simulators import ResponseNotReached
+
+    assert ResponseNotReached.retryable is False
+    with StudyStore(tmp_path / "s.sqlite") as store:
+        keys = store.add_design("design", "e", [RunSpec("test-not-reached", "1", {}, {"a": 1.0})])
+        rep = run_campaign(store, keys, workers=0, retries=2, progress=False)
+        assert rep.failed == keys and rep.attempts == 1
+        run = store.get_runs(keys)[0]
+        assert run["status"] == "failed" and run["attempts"] == 1
+        assert run["error"].startswith(NOT_RETRIED + "_Outcome: rebound_mm not reached")
+        rep = run_campaign(store, keys, workers=0, retries=2, progress=False)
+        assert rep.attempts == 0 and rep.failed == keys
+        # asked to, a campaign runs it again (once: it is still the outcome)
+        rep = run_campaign(store, keys, workers=0, retries=2, retry_failed=True, progress=False)
+        assert rep.attempts == 1 and store.get_runs(keys)[0]["attempts"] == 2

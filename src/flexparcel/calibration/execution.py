@@ -11,6 +11,10 @@ to ``done`` (or ``failed`` after its retries):
   process) is recorded with its error text and resubmitted until it has had ``1 + retries``
   attempts; after that it stays ``failed`` (visible in the store and the report) until a campaign
   with ``retry_failed=True`` grants it a fresh budget;
+* a failure the simulator marks as its outcome (an exception with ``retryable = False``: a
+  response the run does not reach, which every attempt reproduces) is not retried: its error
+  text starts with :data:`NOT_RETRIED`, and a resumed campaign leaves it failed too (unless
+  ``retry_failed``);
 * a worker process that dies breaks the pool and every run in flight with it: when several were
   in flight none is charged (the culprit is unknown); they run again one at a time, where a
   crash is the run's own and is charged;
@@ -41,6 +45,13 @@ from flexparcel.io.lifetime import die_with_parent
 __all__ = ["CampaignReport", "execute_run", "run_campaign"]
 
 _MAX_ERROR_CHARS = 8000
+
+NOT_RETRIED = "not retried (the simulator's outcome, the same on every attempt): "
+"""Start of the stored error of a failed run that is not retried."""
+
+
+def _not_retried(error: str | None) -> bool:
+    return bool(error) and str(error).startswith(NOT_RETRIED)
 
 
 @dataclass
@@ -127,8 +138,11 @@ def execute_run(
                 f"(it returned: {', '.join(responses) or 'nothing'})"
             )
         out.update(ok=True, responses=responses)
-    except Exception:
-        out.update(ok=False, error=traceback.format_exc()[-_MAX_ERROR_CHARS:])
+    except Exception as exc:
+        error = traceback.format_exc()[-_MAX_ERROR_CHARS:]
+        if getattr(exc, "retryable", True) is False:
+            error = NOT_RETRIED + f"{type(exc).__name__}: {exc}\n{error}"
+        out.update(ok=False, error=error)
     out["wall_s"] = time.perf_counter() - t0
     out.setdefault("code_version", f"flexparcel {__version__}")
     return out
@@ -239,7 +253,8 @@ def run_campaign(
             if r["status"] == "done":
                 report.already_done += 1
                 continue
-            if r["status"] == "failed" and not retry_failed and r["attempts"] >= 1 + retries:
+            spent = r["attempts"] >= 1 + retries or _not_retried(r.get("error"))
+            if r["status"] == "failed" and not retry_failed and spent:
                 report.failed.append(key)
                 continue
             fresh = r["status"] == "failed" and retry_failed
@@ -331,7 +346,8 @@ def run_campaign(
                         wall_s=outcome.get("wall_s"),
                         worker=outcome.get("worker", ""),
                     )
-                    if store.get_runs([key])[0]["attempts"] < budget[key]:
+                    again = store.get_runs([key])[0]["attempts"] < budget[key]
+                    if again and not _not_retried(outcome["error"]):
                         queue.append(key)
                     else:
                         report.failed.append(key)

@@ -32,7 +32,18 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-__all__ = ["swing", "drop_vertical", "drop_horizontal", "conveyor", "scenario_snapshot"]
+__all__ = [
+    "swing", "drop_vertical", "drop_horizontal", "conveyor", "scenario_snapshot",
+    "ResponseNotReached",
+]  # fmt: skip
+
+
+class ResponseNotReached(ValueError):
+    """A paper response the run did not reach. It is the model's outcome at these
+    parameters, the same on every attempt, so a campaign does not retry the run
+    (``retryable``, read by :mod:`flexparcel.calibration.execution`)."""
+
+    retryable = False
 
 
 def scenario_snapshot(
@@ -123,7 +134,7 @@ def _run(name: str, params: Mapping[str, float], setup: Mapping[str, object]) ->
         if r.reached:
             out[rname] = float(r.value)
         elif rname in _PAPER_RESPONSES:
-            raise ValueError(f"{name}: {rname} not reached: {r.note}")
+            raise ResponseNotReached(f"{name}: {rname} not reached: {r.note}")
     return out
 
 
