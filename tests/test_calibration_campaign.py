@@ -104,6 +104,67 @@ def test_dry_run_cost_comes_from_measured_runs(tmp_path, capsys):
     assert "design    swing            low      40          ?" in out  # not yet measured
 
 
+def test_stated_cost_by_fidelity_level(tmp_path, capsys):
+    # a 10 mm run costs ten times a 25 mm one: the plan takes each level's own figure
+    study = tmp_path / "mf.toml"
+    text = MULTIFIDELITY.read_text().replace('"../out/calibration-multifidelity', f'"{tmp_path}/o')
+    study.write_text(
+        text.replace(
+            "design = { runs = 40, high_runs = 8 }",
+            "design = { runs = 40, high_runs = 8 }\nestimated_run_s = { low = 30, high = 600 }",
+            1,
+        )
+    )
+    assert main(["calibrate", str(study), "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "design    swing            low      40       30 s   20.0 min" in out  # 40 x 30 s
+    assert "design    swing            high      8   10.0 min   80.0 min" in out  # 8 x 600 s
+    assert "validate  swing            high      1   10.0 min   10.0 min" in out
+    bad = study.read_text().replace("{ low = 30, high = 600 }", "{ low = 30, medium = 600 }")
+    study.write_text(bad)
+    with pytest.raises(StudyConfigError, match=r"\[experiments\.swing\.estimated_run_s\] "
+                       r"medium: unknown key \(allowed here: high, low\)"):  # fmt: skip
+        load_study(study)
+    study.write_text(bad.replace("medium = 600", "high = -1"))
+    with pytest.raises(StudyConfigError, match=r"estimated_run_s\] high: must be > 0"):
+        load_study(study)
+
+
+def test_estimated_cost_by_level_needs_fidelity_levels(tmp_path):
+    path = tmp_path / "study.toml"
+    path.write_text(
+        BASE.replace("parameters = [", "estimated_run_s = { low = 3 }\nparameters = [", 1)
+    )
+    message = r"\[experiments\.\w+\] estimated_run_s: a table by fidelity level needs \[fidelity"
+    with pytest.raises(StudyConfigError, match=message):
+        load_study(path)
+
+
+def test_the_running_campaign_is_what_its_comments_say():
+    # docs/campaigns/kpbw/study.toml, the campaign whose store is committed next to it: the
+    # tension-field membrane in all three tests, 0.5 s drops, 2^(6-1) screens of resolution
+    # VI, 25 mm low / 10 mm high, the real-world targets of the shipped example
+    c = load_study(ROOT / "docs" / "campaigns" / "kpbw" / "study.toml")
+    paper = load_study(CAMPAIGN)
+    assert c.fidelity == {"low": {"element_size_mm": 25}, "high": {"element_size_mm": 10}}
+    for name, e in c.experiments.items():
+        assert e.setup["membrane"] == "tension-field" and e.setup["consignment"] == "KPBW"
+        assert e.parameters == paper.experiments[name].parameters
+        assert {t.key: t.value for t in e.targets} == {
+            t.key: t.value for t in paper.experiments[name].targets
+        }
+        assert e.high_runs == 4
+    for name in ("drop_vertical", "drop_horizontal"):
+        e = c.experiments[name]
+        assert e.setup["t_end_s"] == 0.5
+        assert e.screening.design == "fractional-factorial"
+        assert e.screening.generators == ("F = ABCDE",) or list(e.screening.generators) == [
+            "F = ABCDE"
+        ]
+    assert (c.experiments["swing"].design_runs, c.experiments["drop_vertical"].design_runs,
+            c.experiments["drop_horizontal"].design_runs) == (40, 60, 40)  # fmt: skip
+
+
 @pytest.fixture(scope="module")
 def multifidelity_run(tmp_path_factory):
     from threadpoolctl import threadpool_limits

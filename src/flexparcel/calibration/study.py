@@ -107,8 +107,9 @@ class ExperimentConfig:
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     #: Latin-hypercube runs at the high fidelity level (multi-fidelity studies only).
     high_runs: int | None = None
-    #: Stated wall time of one run [s] for the dry-run plan when the store has none measured.
-    estimated_run_s: float | None = None
+    #: Stated wall time of one run [s] for the dry-run plan when the store has none measured:
+    #: one number, or by fidelity level (``{"low": 160.0, "high": 3000.0}``).
+    estimated_run_s: float | Mapping[str, float] | None = None
     #: Responses a design study analyses; a run may lack one (not reached: a consignment that
     #: never leaves the belt has no exit time), which is recorded as absent, not a failure.
     outcomes: tuple[str, ...] = ()
@@ -493,6 +494,12 @@ def _parse_fidelity(path: Path, top: _Fields, experiments) -> dict | None:
     table = top.get("fidelity", "table")
     if table is None:
         for e in experiments.values():
+            if isinstance(e.estimated_run_s, Mapping):
+                _Fields(path, f"experiments.{e.name}", {}, ()).fail(
+                    "estimated_run_s",
+                    "a table by fidelity level needs [fidelity.low] and [fidelity.high]; "
+                    "give one number [s]",
+                )
             if e.high_runs is not None:
                 _Fields(path, f"experiments.{e.name}.design", {}, ()).fail(
                     "high_runs", "only a study with [fidelity.low] and [fidelity.high] takes it"
@@ -570,6 +577,24 @@ def _simulator_reference(path: Path, name: str) -> str:
     return name
 
 
+def _estimated_run_s(path: Path, t: str, f: _Fields, edata) -> float | dict[str, float] | None:
+    """``estimated_run_s``: one number [s], or a table by fidelity level (``{ low = 160,
+    high = 3000 }``: a 10 mm run costs ten times a 25 mm one, so one figure cannot serve both
+    levels of a multi-fidelity plan)."""
+    raw = edata.get("estimated_run_s") if isinstance(edata, Mapping) else None
+    if isinstance(raw, Mapping):
+        lf = _Fields(path, f"{t}.estimated_run_s", raw, FIDELITY_LEVELS)
+        out = {lv: float(lf.get(lv, "num")) for lv in FIDELITY_LEVELS if lv in raw}
+        for lv, v in out.items():
+            if v <= 0:
+                lf.fail(lv, "must be > 0 [s]")
+        return out or None
+    estimated = f.get("estimated_run_s", "num")
+    if estimated is not None and estimated <= 0:
+        f.fail("estimated_run_s", "must be > 0 [s]")
+    return None if estimated is None else float(estimated)
+
+
 def _parse_experiment(
     path: Path, ename: str, edata, space: ParameterSpace, purpose: str = "calibration"
 ) -> ExperimentConfig:
@@ -615,9 +640,7 @@ def _parse_experiment(
         except ValueError as exc:
             f.fail("bounds", f"{p}: {exc}")
         bounds[p] = (float(b[0]), float(b[1]))
-    estimated = f.get("estimated_run_s", "num")
-    if estimated is not None and estimated <= 0:
-        f.fail("estimated_run_s", "must be > 0 [s]")
+    estimated = _estimated_run_s(path, t, f, edata)
     ttable = f.get("targets", "table")
     outcomes = tuple(f.str_list("outcomes", []))
     if purpose == "design":
@@ -728,7 +751,7 @@ def _parse_experiment(
         description=f.get("description", "str", ""),
         bounds=bounds,
         high_runs=high_runs,
-        estimated_run_s=None if estimated is None else float(estimated),
+        estimated_run_s=estimated,
         outcomes=outcomes,
     )
 
@@ -1256,8 +1279,11 @@ class Study:
             w = walls.get((exp.simulator, setup))
             if w:
                 return float(np.median(w)), f"measured ({len(w)} runs in the store)"
-            if exp.estimated_run_s is not None:
-                return exp.estimated_run_s, "stated in the study (estimated_run_s)"
+            stated = exp.estimated_run_s
+            if isinstance(stated, Mapping):
+                stated = stated.get(level)
+            if stated is not None:
+                return stated, "stated in the study (estimated_run_s)"
             return None, "unknown \u2014 run one"
 
         low = "low" if c.fidelity is not None else None

@@ -132,7 +132,7 @@ def print_plan(plan: dict) -> None:
     if plan["known_s"] > 0:
         print(
             f"       about {_duration(plan['known_s'] / plan['workers'])} of wall time on "
-            f"{plan['workers']} workers (known part)"
+            f"{plan['workers']} worker{'s' if plan['workers'] != 1 else ''} (known part)"
         )
 
 
