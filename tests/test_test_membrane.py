@@ -28,7 +28,7 @@ def test_tension_field_reaches_every_packaging_shell_and_nothing_else(snapshot_d
     plain = get_scenario(name, **EXTRA[name]).build(snap, {})
     shells_tf, shells_plain = _shells(tf.model), _shells(plain.model)
     assert shells_tf and len(shells_tf) == len(shells_plain)
-    for a, b in zip(shells_tf, shells_plain):
+    for a, b in zip(shells_tf, shells_plain, strict=True):
         # every triangle carries the tension field's data; the elastic one has none
         assert np.all(np.abs(a.tension_field).sum(axis=(1, 2)) > 0)
         assert not b.tension_field.any()
