@@ -92,7 +92,8 @@ def _screening_figures(figs: _Figures, exp: str, res: dict) -> str:
     out = []
     names = res["parameters"]
     for r, an in res["anova"].items():
-        fig, axes = plt.subplots(1, 2, figsize=(11, 3.6))
+        # constrained: the Pareto chart's interaction names need room left of its bars
+        fig, axes = plt.subplots(1, 2, figsize=(12, 4), layout="constrained")
         # Response (main-effects) plot, as the paper's Fig. 31: mean response at each level.
         ax = axes[0]
         sig = set(an["significant_factors"])
