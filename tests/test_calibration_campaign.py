@@ -158,9 +158,7 @@ def test_the_running_campaign_is_what_its_comments_say():
         e = c.experiments[name]
         assert e.setup["t_end_s"] == 0.5
         assert e.screening.design == "fractional-factorial"
-        assert e.screening.generators == ("F = ABCDE",) or list(e.screening.generators) == [
-            "F = ABCDE"
-        ]
+        assert e.screening.generators == ("F = ABCDE",)
     assert (c.experiments["swing"].design_runs, c.experiments["drop_vertical"].design_runs,
             c.experiments["drop_horizontal"].design_runs) == (40, 60, 40)  # fmt: skip
 
