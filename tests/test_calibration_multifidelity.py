@@ -64,6 +64,39 @@ def test_fused_surrogate_beats_high_only_on_the_forrester_pair(forrester):
     assert np.all(np.abs(m - truth) < 4.0 * s + 1e-3)
 
 
+def test_leave_one_out_compares_fused_and_high_only_on_every_high_run(forrester):
+    """Each of the six high runs predicted from the other five: the same story as the
+    201-point check, on all high runs instead of one. Margin: the fused RMSE below 10 % of the
+    high-only one (from five points the discrepancy is still linear, so the fused error stays
+    at the 1e-3 level, while five points miss the oscillation by RMSE of order 1-10; a fused
+    surrogate that ignored the low runs would be no better than high-only). The predictions
+    are recomputed here independently: a high-only GP on the other five runs at each run."""
+    _, X_high, fused, _ = forrester
+    y_high = forrester_high(X_high[:, 0])
+    assert fused.loo_pred_.shape == (6,) and np.all(np.isfinite(fused.loo_pred_))
+    assert fused.loo_rmse_ < 0.1 * fused.high_only_loo_rmse_, (
+        fused.loo_rmse_, fused.high_only_loo_rmse_,
+    )  # fmt: skip
+    rmse = float(np.sqrt(np.mean((fused.loo_pred_ - y_high) ** 2)))
+    assert fused.loo_rmse_ == pytest.approx(rmse, rel=1e-12)
+    i = 2
+    with threadpool_limits(1):
+        ref = FixedKernelGP(X1, fused.kernel_name_, n_restarts_optimizer=0, random_state=1)
+        ref.fit(np.delete(X_high, i, axis=0), np.delete(y_high, i))
+    # the same family on the same five runs; restarts and seeds may move the optimum a little
+    assert fused.high_only_loo_pred_[i] == pytest.approx(ref.predict(X_high[[i]])[0], rel=0.2)
+
+
+def test_leave_one_out_needs_three_high_runs():
+    X_low = X1.from_unit(latin_hypercube(12, 1, random_state=1))
+    X_high = X1.from_unit(latin_hypercube(2, 1, random_state=5))
+    with threadpool_limits(1):
+        fused = CoKrigingSurrogate(X1, kernels=KERNELS, n_restarts_optimizer=0, random_state=1)
+        fused.fit(X_low, forrester_low(X_low[:, 0]), X_high, forrester_high(X_high[:, 0]))
+    assert np.isnan(fused.loo_rmse_) and np.isnan(fused.high_only_loo_rmse_)
+    assert np.all(np.isnan(fused.loo_pred_))
+
+
 def test_fused_surrogate_is_rebuilt_exactly_from_its_dict(forrester):
     X_low, X_high, fused, _ = forrester
     data = json.loads(json.dumps(fused.to_dict()))
@@ -75,6 +108,8 @@ def test_fused_surrogate_is_rebuilt_exactly_from_its_dict(forrester):
     m1, s1 = again.predict(x, return_std=True)
     np.testing.assert_allclose(m1, m0, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(s1, s0, rtol=1e-7, atol=1e-9)
+    assert again.loo_rmse_ == fused.loo_rmse_
+    np.testing.assert_array_equal(again.high_only_loo_pred_, fused.high_only_loo_pred_)
 
 
 def test_log_transform_works_in_the_response_units():

@@ -149,6 +149,12 @@ class CoKrigingSurrogate:
     holdout_pred_, holdout_std_, holdout_true_ : ndarray
         The fused surrogate's hold-out predictions, standard deviations and simulated values.
     high_only_holdout_pred_ : ndarray
+    loo_rmse_, high_only_loo_rmse_ : float
+        Leave-one-out RMSE over all high runs [response unit]: each high run predicted by the
+        fused surrogate (all low runs, the other high runs) and by the high-only GP (the other
+        high runs); ``nan`` with fewer than three high runs.
+    loo_pred_, high_only_loo_pred_ : ndarray
+        Their predictions, one per high run in the order given to :meth:`fit`.
     """
 
     def __init__(
@@ -285,30 +291,57 @@ class CoKrigingSurrogate:
         self.high_holdout_index_ = np.sort(perm[:n_hold])
         self.high_train_index_ = np.sort(perm[n_hold:])
         if n_hold:
-            tr, te = self.high_train_index_, self.high_holdout_index_
-            rho, gpr = self._train(U_h[tr], z_h[tr], seed)
-            mu, sd = self._predict(U_h[te], rho, gpr)
+            te = self.high_holdout_index_
+            mu, sd, ref = self._compare(self.high_train_index_, te, U_h, z_h, X_high, y_high, seed)
             self.holdout_pred_, self.holdout_std_ = mu, sd
             self.holdout_true_ = y_high[te]
             self.holdout_rmse_ = _rmse(mu, y_high[te])
-            ref = FixedKernelGP(
-                self.space,
-                self.kernel_name_,
-                n_restarts_optimizer=self.n_restarts_optimizer,
-                random_state=seed,
-                transform=self.transform,
-                log_offset=self.log_offset,
-            ).fit(np.asarray(X_high)[tr], y_high[tr])
-            self.high_only_holdout_pred_ = ref.predict(np.asarray(X_high)[te])
-            self.high_only_holdout_rmse_ = _rmse(self.high_only_holdout_pred_, y_high[te])
+            self.high_only_holdout_pred_ = ref
+            self.high_only_holdout_rmse_ = _rmse(ref, y_high[te])
         else:
             self.holdout_pred_ = self.holdout_std_ = self.holdout_true_ = np.empty(0)
             self.high_only_holdout_pred_ = np.empty(0)
             self.holdout_rmse_ = self.high_only_holdout_rmse_ = float("nan")
+        self._leave_one_out(U_h, z_h, X_high, y_high, seed)
         # The final model on all high runs.
         self.rho_, self.delta_gpr_ = self._train(U_h, z_h, seed)
         self.n_high_ = n_h
         return self
+
+    def _compare(self, tr, te, U_h, z_h, X_high, y_high, seed):
+        """The fused surrogate trained on all low runs and the high runs ``tr``, and a
+        high-only :class:`FixedKernelGP` trained on the same high runs, at the high runs
+        ``te``: fused mean and standard deviation, high-only mean [response unit]."""
+        rho, gpr = self._train(U_h[tr], z_h[tr], seed)
+        mu, sd = self._predict(U_h[te], rho, gpr)
+        ref = FixedKernelGP(
+            self.space,
+            self.kernel_name_,
+            n_restarts_optimizer=self.n_restarts_optimizer,
+            random_state=seed,
+            transform=self.transform,
+            log_offset=self.log_offset,
+        ).fit(np.asarray(X_high)[tr], y_high[tr])
+        return mu, sd, ref.predict(np.asarray(X_high)[te])
+
+    def _leave_one_out(self, U_h, z_h, X_high, y_high, seed) -> None:
+        """Each high run predicted from all low runs and the other high runs, by the fused
+        surrogate and by the high-only GP: with the four high runs of a campaign a hold-out
+        of 10 % is one run, a figure of one point; leaving each out once compares the two on
+        all of them (Hastie, Tibshirani & Friedman, The Elements of Statistical Learning,
+        2nd ed., 7.10). Needs three high runs (two to train on); ``nan`` below."""
+        n_h = len(y_high)
+        self.loo_pred_ = np.full(n_h, np.nan)
+        self.high_only_loo_pred_ = np.full(n_h, np.nan)
+        if n_h >= 3:
+            for i in range(n_h):
+                tr = np.delete(np.arange(n_h), i)
+                mu, _, ref = self._compare(tr, [i], U_h, z_h, X_high, y_high, seed)
+                self.loo_pred_[i], self.high_only_loo_pred_[i] = mu[0], ref[0]
+        self.loo_rmse_ = _rmse(self.loo_pred_, y_high) if n_h >= 3 else float("nan")
+        self.high_only_loo_rmse_ = (
+            _rmse(self.high_only_loo_pred_, y_high) if n_h >= 3 else float("nan")
+        )
 
     # -- prediction ----------------------------------------------------------------------------
 
@@ -358,6 +391,10 @@ class CoKrigingSurrogate:
             "holdout_std": [float(v) for v in self.holdout_std_],
             "holdout_true": [float(v) for v in self.holdout_true_],
             "high_only_holdout_pred": [float(v) for v in self.high_only_holdout_pred_],
+            "loo_rmse": self.loo_rmse_,
+            "high_only_loo_rmse": self.high_only_loo_rmse_,
+            "loo_pred": [float(v) for v in self.loo_pred_],
+            "high_only_loo_pred": [float(v) for v in self.high_only_loo_pred_],
             "transform": self._tf.to_dict(),
             # for the report's CV table and residual plot (the low level's model selection)
             "cv_rmse": low["cv_rmse"],
@@ -396,4 +433,9 @@ class CoKrigingSurrogate:
         self.high_only_holdout_rmse_ = float(data["high_only_holdout_rmse"])
         for k in ("holdout_pred", "holdout_std", "holdout_true", "high_only_holdout_pred"):
             setattr(self, k + "_", np.asarray(data[k], dtype=float))
+        # fits stored before the leave-one-out comparison have none
+        self.loo_rmse_ = float(data.get("loo_rmse", float("nan")))
+        self.high_only_loo_rmse_ = float(data.get("high_only_loo_rmse", float("nan")))
+        for k in ("loo_pred", "high_only_loo_pred"):
+            setattr(self, k + "_", np.asarray(data.get(k, [np.nan] * self.n_high_), dtype=float))
         return self

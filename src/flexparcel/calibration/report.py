@@ -55,6 +55,19 @@ def _fmt(v, digits: int = 4) -> str:
     return html.escape(str(v))
 
 
+def _loo_sentence(gp: dict, unit: str) -> str:
+    """The leave-one-out comparison of a fused surrogate with the high-only GP, or ""
+    where the fit has none (fewer than three high runs, or a fit stored before it)."""
+    fused, high = gp.get("loo_rmse"), gp.get("high_only_loo_rmse")
+    if fused is None or high is None or fused != fused or high != high:
+        return ""
+    return (
+        f" Leaving each of the {gp['n_high']} high runs out once (trained on all low runs "
+        f"and the other high runs): fused RMSE <b>{_fmt(fused)}</b> {unit}, high-only "
+        f"<b>{_fmt(high)}</b> {unit}."
+    )
+
+
 def _table(header: list[str], rows: list[list], classes: list[str] | None = None) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = []
@@ -424,7 +437,7 @@ def write_report(study) -> Path:
                         f"{_fmt(gp['holdout_rmse'])}</b> {unit}, high-only GP trained on the "
                         f"same high runs <b>{_fmt(gp['high_only_holdout_rmse'])}</b> {unit} "
                         f"(high-level range {_fmt(fit['range'][r][0])} … "
-                        f"{_fmt(fit['range'][r][1])}).</p>"
+                        f"{_fmt(fit['range'][r][1])}).{_loo_sentence(gp, unit)}</p>"
                     )
                 else:
                     add(
@@ -538,6 +551,8 @@ def write_report(study) -> Path:
                             "transform",
                             "rho",
                             "high_only_holdout_rmse",
+                            "loo_rmse",
+                            "high_only_loo_rmse",
                             "low_holdout_rmse",
                         )
                         if k in g

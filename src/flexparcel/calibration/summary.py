@@ -12,6 +12,11 @@ campaign wants first, next to the full ``results.json`` and ``report.html``.
   validation run failed;
 * ``run_counts``: finished runs per fidelity level ("single" in a single-fidelity study) and
   stage, and per status over the whole store;
+* ``multifidelity`` (a study with fidelity levels): per experiment and target response the
+  fused surrogate against a high-only GP trained on the same high runs, both on the held-out
+  high runs (``holdout_rmse``, ``high_only_holdout_rmse``, ``n_holdout``) and leaving each high
+  run out once (``loo_rmse``, ``high_only_loo_rmse``, ``n_high``), in the response's unit;
+  null before the fit stage;
 * ``wall_s``: ``runs`` (the simulators' wall times added up, what one worker would have
   spent) and ``elapsed`` (first run started to last run finished, breaks between sittings
   included).
@@ -20,6 +25,7 @@ campaign wants first, next to the full ``results.json`` and ``report.html``.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 from flexparcel.io.atomic import write_atomic
@@ -49,9 +55,37 @@ def campaign_summary(study) -> dict:
         "parameter_units": units,
         "validation": _validation(c, val, summary_names(c.experiments.values())) if val else None,
         "run_counts": _run_counts(c, store, runs),
+        "multifidelity": _multifidelity(c, store) if c.fidelity is not None else None,
         "wall_s": _wall(runs),
     }
     return summary
+
+
+def _multifidelity(c, store) -> dict | None:
+    """Fused against high-only RMSEs per experiment and response, from the stored fits."""
+    out = {}
+    for name in c.experiments:
+        fit = store.get_result("fit", name)
+        if not fit:
+            return None
+        out[name] = {
+            r: {
+                "rho": g.get("rho"),
+                "n_high": g.get("n_high"),
+                "n_holdout": len(g.get("high_holdout_index", [])),
+                **{k: _number(g.get(k)) for k in _MF_KEYS},
+            }
+            for r, g in fit["responses"].items()
+        }
+    return out
+
+
+def _number(v) -> float | None:
+    """A stored figure, None where it is missing or not finite (JSON has no NaN)."""
+    return float(v) if isinstance(v, (int, float)) and math.isfinite(v) else None
+
+
+_MF_KEYS = ("holdout_rmse", "high_only_holdout_rmse", "loo_rmse", "high_only_loo_rmse")
 
 
 def summary_names(experiments) -> dict[tuple[str, str], str]:
