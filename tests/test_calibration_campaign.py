@@ -74,7 +74,7 @@ def test_campaign_dry_run_prints_the_plan(tmp_path, capsys):
     assert "total: 831 runs" in out
     assert "unknown \u2014 run one" in out  # the vertical drop: no estimate stated
     # the swing and the horizontal drop at 10 mm: their measured wall times, stated
-    assert "design    swing            -       100   80.5 min" in out  # 4,833 s
+    assert "design    swing            -       100     0   80.5 min" in out  # 4,833 s
     assert not (tmp_path / "s.sqlite").exists()  # a dry run creates nothing
     assert main([*args, "--budget", "0.1"]) == 0
     out = capsys.readouterr().out
@@ -96,12 +96,16 @@ def test_dry_run_cost_comes_from_measured_runs(tmp_path, capsys):
     assert "screen    drop             low      16" in out
     assert "design    swing            high      8" in out
     assert "total: 114 runs" in out  # 16 + 2 x (40 + 8) + 2 validation runs
+    assert "left: 114 runs" in out  # nothing run yet
     with Study(study, progress=False) as st:
         st.screen()
     assert main(["calibrate", str(study), "--dry-run"]) == 0
     out = capsys.readouterr().out
     assert "measured (16 runs in the store)" in out  # the drop at the low level
-    assert "design    swing            low      40          ?" in out  # not yet measured
+    assert "design    swing            low      40     0          ?" in out  # not yet measured
+    # the screen is done: a resume runs the other 98 (2 x (40 + 8) + 2 validation runs)
+    assert "screen    drop             low      16    16" in out
+    assert "left: 98 runs" in out
 
 
 def test_stated_cost_by_fidelity_level(tmp_path, capsys):
@@ -117,9 +121,9 @@ def test_stated_cost_by_fidelity_level(tmp_path, capsys):
     )
     assert main(["calibrate", str(study), "--dry-run"]) == 0
     out = capsys.readouterr().out
-    assert "design    swing            low      40       30 s   20.0 min" in out  # 40 x 30 s
-    assert "design    swing            high      8   10.0 min   80.0 min" in out  # 8 x 600 s
-    assert "validate  swing            high      1   10.0 min   10.0 min" in out
+    assert "design    swing            low      40     0       30 s   20.0 min" in out  # 40 x 30 s
+    assert "design    swing            high      8     0   10.0 min   80.0 min" in out  # 8 x 600 s
+    assert "validate  swing            high      1     0   10.0 min   10.0 min" in out
     bad = study.read_text().replace("{ low = 30, high = 600 }", "{ low = 30, medium = 600 }")
     study.write_text(bad)
     with pytest.raises(StudyConfigError, match=r"\[experiments\.swing\.estimated_run_s\] "

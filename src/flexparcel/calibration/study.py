@@ -71,6 +71,14 @@ STUDY_FORMAT_VERSION = 1
 
 #: Pipeline stages in execution order.
 STAGES = ("screen", "design", "fit", "optimise", "validate", "report")
+_PLAN_STORE_STAGES = {
+    ("screen", "low"): "screening",
+    ("design", "low"): "design",
+    ("design", "high"): "design-high",
+    ("validate", "high"): "validation",
+    ("validate", "low"): "validation",
+}
+"""The store's design name of a plan row (stage, level; a single-fidelity row is "low")."""
 
 
 class StudyConfigError(ValueError):
@@ -1262,17 +1270,33 @@ class Study:
 
         Per stage and experiment: the runs, the fidelity level, and the cost of one run: the
         median wall time of the store's finished runs of that simulator and setup
-        (``"measured"``), else the experiment's ``estimated_run_s`` (``"stated"``), else unknown.
-        Reads the store only if it exists (a dry run creates nothing).
+        (``"measured"``), else the experiment's ``estimated_run_s`` (``"stated"``), else unknown;
+        and how far a campaign has come: ``done`` and ``failed`` among the row's stored design
+        points, ``left`` the runs a resume would still make (a design not generated yet is all
+        left), with ``left_runs`` and ``left_known_s`` over all rows. Reads the store only if
+        it exists (a dry run creates nothing).
         """
         c = self.config
         walls: dict[tuple, list[float]] = {}
+        stored: dict[tuple[str, str], list[str]] = {}  # (store stage, experiment) -> statuses
         if self.store_path.exists():
             with StudyStore(self.store_path) as store:
+                status = {}
                 for r in store.all_runs():
+                    status[r["run_key"]] = r["status"]
                     if r["status"] == "done" and r["wall_s"] is not None:
                         key = (r["simulator"], json.dumps(r["setup"], sort_keys=True))
                         walls.setdefault(key, []).append(float(r["wall_s"]))
+                for exp in c.experiments:
+                    for st in _PLAN_STORE_STAGES.values():
+                        keys = store.design_keys(st, exp)
+                        stored[(st, exp)] = [status[k] for k in keys if k in status]
+
+        def progress(stage, exp, level, n):
+            """(done, failed) of the row's first ``n`` stored design points."""
+            st = _PLAN_STORE_STAGES[(stage, "high" if level == "high" else "low")]
+            statuses = stored.get((st, exp.name), [])[:n]
+            return statuses.count("done"), statuses.count("failed")
 
         def cost(exp, level):
             setup = json.dumps(c.setup_of(exp.name, level), sort_keys=True)
@@ -1313,12 +1337,18 @@ class Study:
                 rows.append(("validate", exp, high, 1, "the simulator at the optimum"))
         out_rows, total, unknown = [], 0.0, 0
         rows.sort(key=lambda r: STAGES.index(r[0]))  # stable: experiments stay in file order
+        left_runs, left_s, left_unknown = 0, 0.0, 0
         for stage, exp, level, n, what in rows:
             each, source = cost(exp, level)
+            done, failed = progress(stage, exp, level, n)
+            left = n - done - failed
+            left_runs += left
             if each is None:
                 unknown += n
+                left_unknown += left
             else:
                 total += n * each
+                left_s += left * each
             out_rows.append(
                 {
                     "stage": stage,
@@ -1331,6 +1361,9 @@ class Study:
                     "run_s": each,
                     "cost_source": source,
                     "total_s": None if each is None else n * each,
+                    "done": done,
+                    "failed": failed,
+                    "left": left,
                 }
             )
         workers = self.workers if self.workers else (os.cpu_count() or 1)
@@ -1340,6 +1373,9 @@ class Study:
             "runs": sum(r["runs"] for r in out_rows),
             "known_s": total,
             "unknown_runs": unknown,
+            "left_runs": left_runs,
+            "left_known_s": left_s,
+            "left_unknown_runs": left_unknown,
             "workers": workers,
             "surrogate": (
                 f"GPR, kernel by {c.cv_folds}-fold CV among {', '.join(c.kernels)}, "

@@ -112,28 +112,32 @@ def _duration(s: float) -> str:
 
 
 def print_plan(plan: dict) -> None:
-    """The dry-run plan as a table."""
+    """The dry-run plan as a table: per row the runs, how many the store holds done (and
+    failed), the cost; then the whole study and what a resume would still run."""
     print(f"plan of study '{plan['study']}' (nothing is run)")
-    print(f"{'stage':9s} {'experiment':16s} {'level':5s} {'runs':>5s}  {'per run':>9s}  "
-          f"{'total':>9s}  what; cost from")  # fmt: skip
+    print(f"{'stage':9s} {'experiment':16s} {'level':5s} {'runs':>5s} {'done':>5s}  "
+          f"{'per run':>9s}  {'total':>9s}  what; cost from")  # fmt: skip
     for r in plan["rows"]:
         each = "?" if r["run_s"] is None else _duration(r["run_s"])
         tot = "?" if r["total_s"] is None else _duration(r["total_s"])
+        failed = f" ({r['failed']} failed)" if r["failed"] else ""
         print(
-            f"{r['stage']:9s} {r['experiment']:16s} {r['level'] or '-':5s} {r['runs']:5d}  "
-            f"{each:>9s}  {tot:>9s}  {r['what']}; {r['cost_source']}"
+            f"{r['stage']:9s} {r['experiment']:16s} {r['level'] or '-':5s} {r['runs']:5d} "
+            f"{r['done']:5d}  {each:>9s}  {tot:>9s}  {r['what']}; {r['cost_source']}{failed}"
         )
     print(f"surrogates: {plan['surrogate']}; optimiser: {plan['optimiser']}")
-    known = _duration(plan["known_s"])
-    line = f"total: {plan['runs']} runs, {known} of simulation where the cost is known"
-    if plan["unknown_runs"]:
-        line += f", plus {plan['unknown_runs']} runs of unknown cost (run one of each to measure)"
-    print(line)
-    if plan["known_s"] > 0:
-        print(
-            f"       about {_duration(plan['known_s'] / plan['workers'])} of wall time on "
-            f"{plan['workers']} worker{'s' if plan['workers'] != 1 else ''} (known part)"
-        )
+    workers = f"{plan['workers']} worker{'s' if plan['workers'] != 1 else ''}"
+    for label, runs, known, unknown in (
+        ("total", plan["runs"], plan["known_s"], plan["unknown_runs"]),
+        ("left", plan["left_runs"], plan["left_known_s"], plan["left_unknown_runs"]),
+    ):
+        line = f"{label}: {runs} runs, {_duration(known)} of simulation where the cost is known"
+        if unknown:
+            line += f", plus {unknown} runs of unknown cost (run one of each to measure)"
+        print(line)
+        if known > 0:
+            print(f"       about {_duration(known / plan['workers'])} of wall time on {workers} "
+                  "(known part)")  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
