@@ -58,6 +58,11 @@ def test_solid_strain_and_stress_of_a_stretched_hexahedron():
     assert vm[0] == pytest.approx(abs((la + 2 * mu) * e - la * e))
     tets = cell_strain_stress(cube, cube * 2.0, "tetra", np.array([[0, 1, 3, 4]]))[0]
     assert tets[0] == pytest.approx(1.5)  # (2^2 - 1) / 2
+    # a wedge (half the cube) stretched along z, as the hexahedron: the same strains
+    wedge = np.array([[0, 1, 3, 4, 5, 7]])
+    w_max, w_min, w_vm = cell_strain_stress(cube, cube * [1, 1, lam], "wedge", wedge, E, nu)
+    assert w_max[0] == pytest.approx(e) and w_min[0] == pytest.approx(0.0, abs=1e-12)
+    assert w_vm[0] == pytest.approx(vm[0])
 
 
 def test_rounded_box_has_the_real_size_and_rounded_corners():

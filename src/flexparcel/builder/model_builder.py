@@ -10,7 +10,7 @@ An element kind or contact pair without an ``add_*`` method comes in through
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
@@ -153,20 +153,36 @@ class ModelBuilder:
             self._cells.setdefault(cname, []).append(used[c])
 
     def add_solid_mesh(
-        self, points: np.ndarray, cells: np.ndarray, kind: str, *, material
+        self,
+        points: np.ndarray,
+        cells: np.ndarray | Mapping[str, np.ndarray],
+        kind: str | None = None,
+        *,
+        material,
     ) -> np.ndarray:
         """Add a solid mesh (flexible content): ``points`` [m] (n, 3), ``cells`` (m, k) of one
-        ``kind`` ("hex8", "wedge6", "pyr5", "tet4" or the meshio names) in VTK node order,
-        a :class:`flexparcel.elements.solid.SolidMaterial`. Returns the global node ids.
-        Nodes used only by solids carry no rotations (those DOFs are held)."""
+        ``kind`` ("hex8", "wedge6", "pyr5", "tet4" or the meshio names) in VTK node order, or
+        a mapping kind -> cells for a mesh of several kinds on the same points (``kind``
+        then None), a :class:`flexparcel.elements.solid.SolidMaterial`. Returns the global
+        node ids. Nodes used only by solids carry no rotations (those DOFs are held)."""
         pts = np.asarray(points, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"add_solid_mesh: points must have shape (n, 3), got {pts.shape}")
-        group = SolidGroup(pts, np.asarray(cells), kind, material)  # validates cells, material
+        if isinstance(cells, Mapping):
+            if kind is not None:
+                raise ValueError("add_solid_mesh: give kind only with one array of cells")
+            blocks = list(cells.items())
+        elif kind is None:
+            raise ValueError("add_solid_mesh: kind is needed with one array of cells")
+        else:
+            blocks = [(kind, cells)]
+        # validates cells and material per kind
+        groups = [SolidGroup(pts, np.asarray(c), k, material) for k, c in blocks]
         ids = np.arange(self._node_count, self._node_count + len(pts))
-        group.renumber(ids[0])
+        for group in groups:
+            group.renumber(ids[0])
         self._points.append(pts)
-        self._groups.append(group)
+        self._groups.extend(groups)
         self._node_count += len(pts)
         return ids
 

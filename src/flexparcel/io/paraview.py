@@ -289,11 +289,20 @@ _HEX_XI = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
                     [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], float)  # fmt: skip
 
 
+# wedge (triangle 0-1-2 at t = -1, 3-4-5 at t = +1): dN/d(r, s, t) at its centre (1/3, 1/3, 0)
+_WEDGE_CENTRE_DN = np.array(
+    [[-0.5, -0.5, -1 / 6], [0.5, 0.0, -1 / 6], [0.0, 0.5, -1 / 6],
+     [-0.5, -0.5, 1 / 6], [0.5, 0.0, 1 / 6], [0.0, 0.5, 1 / 6]]
+)  # fmt: skip
+
+
 def _solid_strain(ref: np.ndarray, cur: np.ndarray, conn: np.ndarray) -> np.ndarray | None:
     """Green-Lagrange strain tensor at each solid cell's centre (m, 3, 3); hexahedra (VTK
-    order) and tetrahedra; None for other kinds."""
+    order), wedges and tetrahedra; None for other kinds."""
     if conn.shape[1] == 8:
         dN = _HEX_XI / 8.0  # derivatives of the trilinear shape functions at the centre
+    elif conn.shape[1] == 6:
+        dN = _WEDGE_CENTRE_DN
     elif conn.shape[1] == 4:
         dN = np.array([[-1, -1, -1], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
     else:
@@ -315,7 +324,7 @@ def cell_strain_stress(
     """Per cell of one block: max and min principal Green-Lagrange strain [-] and the von
     Mises stress [Pa] (NaN where E or nu is not given, or for a cell kind without a measure).
     Shells (``triangle``, ``quad``): membrane strain, plane-stress membrane stress;
-    solids (``hexahedron``, ``tetra``): St. Venant-Kirchhoff stress."""
+    solids (``hexahedron``, ``wedge``, ``tetra``): St. Venant-Kirchhoff stress."""
     conn = np.asarray(conn, np.int64)
     m = len(conn)
     nan = np.full(m, np.nan)
@@ -335,7 +344,7 @@ def cell_strain_stress(
             s12 = c * (1.0 - nu) * e[:, 2]  # G 2 e12 = E / (2 (1 + nu)) 2 e12
             vm = np.sqrt(s11**2 - s11 * s22 + s22**2 + 3.0 * s12**2)
             return emax, emin, vm
-        if ctype in ("hexahedron", "tetra"):
+        if ctype in ("hexahedron", "wedge", "tetra"):
             Egl = _solid_strain(ref, cur, conn)
             w = np.linalg.eigvalsh(Egl)
             if E is None or nu is None:
