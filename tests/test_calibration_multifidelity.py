@@ -25,13 +25,19 @@ def forrester_low(x):
     return 0.5 * forrester_high(x) + 10.0 * (x - 0.5) - 5.0
 
 
+def _fused(X_low, X_high) -> CoKrigingSurrogate:
+    """The co-kriging of the Forrester pair on these low and high runs."""
+    with threadpool_limits(1):
+        fused = CoKrigingSurrogate(X1, kernels=KERNELS, n_restarts_optimizer=0, random_state=1)
+        return fused.fit(X_low, forrester_low(X_low[:, 0]), X_high, forrester_high(X_high[:, 0]))
+
+
 @pytest.fixture(scope="module")
 def forrester():
     X_low = X1.from_unit(latin_hypercube(21, 1, random_state=1))
     X_high = X1.from_unit(latin_hypercube(6, 1, random_state=101))
+    fused = _fused(X_low, X_high)
     with threadpool_limits(1):
-        fused = CoKrigingSurrogate(X1, kernels=KERNELS, n_restarts_optimizer=0, random_state=1)
-        fused.fit(X_low, forrester_low(X_low[:, 0]), X_high, forrester_high(X_high[:, 0]))
         high_only = FixedKernelGP(X1, fused.kernel_name_, n_restarts_optimizer=2, random_state=1)
         high_only.fit(X_high, forrester_high(X_high[:, 0]))
     return X_low, X_high, fused, high_only
@@ -90,9 +96,7 @@ def test_leave_one_out_compares_fused_and_high_only_on_every_high_run(forrester)
 def test_leave_one_out_needs_three_high_runs():
     X_low = X1.from_unit(latin_hypercube(12, 1, random_state=1))
     X_high = X1.from_unit(latin_hypercube(2, 1, random_state=5))
-    with threadpool_limits(1):
-        fused = CoKrigingSurrogate(X1, kernels=KERNELS, n_restarts_optimizer=0, random_state=1)
-        fused.fit(X_low, forrester_low(X_low[:, 0]), X_high, forrester_high(X_high[:, 0]))
+    fused = _fused(X_low, X_high)
     assert np.isnan(fused.loo_rmse_) and np.isnan(fused.high_only_loo_rmse_)
     assert np.all(np.isnan(fused.loo_pred_))
 
