@@ -232,6 +232,7 @@ def test_multifidelity_report_shows_both_rmses(multifidelity_run):
     _, tmp = multifidelity_run
     html = (tmp / "o" / "report.html").read_text()
     assert "co-kriging" in html and "high-only" in html
+    assert "Leaving each of the 8 high runs out once" in html
     assert "log" in html  # the second swing's transform is stated
     # summary.json counts the finished runs per fidelity level: 16 screening and 2 x 40
     # design runs low, 2 x 8 design runs and the 2 validation runs high
