@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flexparcel.builder.model_builder import _solid_boundary_faces
+from flexparcel.builder.model_builder import _SOLID_FACES, _solid_boundary_faces
 from flexparcel.consignments.content_mesh import rounded_block, rounded_block_volume
 from flexparcel.elements.solid import SolidMaterial, solid_reference_data
 
@@ -41,8 +41,6 @@ def test_elements_are_valid_and_the_mesh_conforms(size, radius, h):
     # between two regions (nodes not merged, a face split differently on both sides) would
     # leave boundary faces inside the block, away from the surface.
     count: dict = {}
-    from flexparcel.builder.model_builder import _SOLID_FACES
-
     for cells in mesh.cells.values():
         for face in _SOLID_FACES[cells.shape[1]]:
             for row in cells[:, face].tolist():

@@ -333,15 +333,15 @@ class CoKrigingSurrogate:
         n_h = len(y_high)
         self.loo_pred_ = np.full(n_h, np.nan)
         self.high_only_loo_pred_ = np.full(n_h, np.nan)
-        if n_h >= 3:
-            for i in range(n_h):
-                tr = np.delete(np.arange(n_h), i)
-                mu, _, ref = self._compare(tr, [i], U_h, z_h, X_high, y_high, seed)
-                self.loo_pred_[i], self.high_only_loo_pred_[i] = mu[0], ref[0]
-        self.loo_rmse_ = _rmse(self.loo_pred_, y_high) if n_h >= 3 else float("nan")
-        self.high_only_loo_rmse_ = (
-            _rmse(self.high_only_loo_pred_, y_high) if n_h >= 3 else float("nan")
-        )
+        self.loo_rmse_ = self.high_only_loo_rmse_ = float("nan")
+        if n_h < 3:
+            return
+        for i in range(n_h):
+            tr = np.delete(np.arange(n_h), i)
+            mu, _, ref = self._compare(tr, [i], U_h, z_h, X_high, y_high, seed)
+            self.loo_pred_[i], self.high_only_loo_pred_[i] = mu[0], ref[0]
+        self.loo_rmse_ = _rmse(self.loo_pred_, y_high)
+        self.high_only_loo_rmse_ = _rmse(self.high_only_loo_pred_, y_high)
 
     # -- prediction ----------------------------------------------------------------------------
 

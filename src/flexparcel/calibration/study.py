@@ -1288,7 +1288,7 @@ class Study:
                         key = (r["simulator"], json.dumps(r["setup"], sort_keys=True))
                         walls.setdefault(key, []).append(float(r["wall_s"]))
                 for exp in c.experiments:
-                    for st in _PLAN_STORE_STAGES.values():
+                    for st in set(_PLAN_STORE_STAGES.values()):
                         keys = store.design_keys(st, exp)
                         stored[(st, exp)] = [status[k] for k in keys if k in status]
 

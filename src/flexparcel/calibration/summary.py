@@ -25,7 +25,6 @@ campaign wants first, next to the full ``results.json`` and ``report.html``.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 from flexparcel.io.atomic import write_atomic
@@ -62,7 +61,10 @@ def campaign_summary(study) -> dict:
 
 
 def _multifidelity(c, store) -> dict | None:
-    """Fused against high-only RMSEs per experiment and response, from the stored fits."""
+    """Fused against high-only RMSEs per experiment and response, from the stored fits (a
+    figure not finite, e.g. no hold-out, as null: JSON has no NaN)."""
+    from flexparcel.calibration.report import _finite
+
     out = {}
     for name in c.experiments:
         fit = store.get_result("fit", name)
@@ -73,16 +75,11 @@ def _multifidelity(c, store) -> dict | None:
                 "rho": g.get("rho"),
                 "n_high": g.get("n_high"),
                 "n_holdout": len(g.get("high_holdout_index", [])),
-                **{k: _number(g.get(k)) for k in _MF_KEYS},
+                **_finite({k: g.get(k) for k in _MF_KEYS}),
             }
             for r, g in fit["responses"].items()
         }
     return out
-
-
-def _number(v) -> float | None:
-    """A stored figure, None where it is missing or not finite (JSON has no NaN)."""
-    return float(v) if isinstance(v, (int, float)) and math.isfinite(v) else None
 
 
 _MF_KEYS = ("holdout_rmse", "high_only_holdout_rmse", "loo_rmse", "high_only_loo_rmse")

@@ -31,14 +31,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from flexparcel.elements.solid import centre_shape_gradients
+
 __all__ = ["RoundedBlockMesh", "rounded_block", "rounded_block_volume"]
 
-# the vectors whose triple product is the sign of each kind's Jacobian at its first node,
-# and the node order that flips an element inside out (see elements/solid.py's references)
-_ORIENT = {
-    "hex8": ((1, 3, 4), [4, 5, 6, 7, 0, 1, 2, 3]),
-    "wedge6": ((1, 2, 3), [3, 4, 5, 0, 1, 2]),
-    "tet4": ((1, 2, 3), [0, 2, 1, 3]),
+# the node order that turns each kind inside out (its two triangle or square ends swapped,
+# or two tet corners), to orient an element whose Jacobian is negative
+_FLIP = {
+    "hex8": [4, 5, 6, 7, 0, 1, 2, 3],
+    "wedge6": [3, 4, 5, 0, 1, 2],
+    "tet4": [0, 2, 1, 3],
 }
 
 
@@ -115,9 +117,9 @@ def rounded_block(size, radius: float, h: float, centre=(0.0, 0.0, 0.0)) -> Roun
     _edges(grids, a, rho, n_t, c0, node, cells)
     _corners(a, rho, n_t, c0, node, cells)
     points = np.array(node.points)
-    out = {k: _oriented(k, points, np.array(v, np.int64).reshape(-1, len(_ORIENT[k][1])))
+    out = {k: _oriented(k, points, np.array(v, np.int64).reshape(-1, len(_FLIP[k])))
            for k, v in cells.items() if v}  # fmt: skip
-    return RoundedBlockMesh(points, out, _rounded_nodes(points, out, a, r, c0, tol))
+    return RoundedBlockMesh(points, out, _rounded_nodes(points, a, r, c0, tol))
 
 
 def _hex(ids) -> list[int]:
@@ -219,22 +221,16 @@ def _corners(a, rho, n_t, c0, node, cells) -> None:
 
 def _oriented(kind: str, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
     """``cells`` with collapsed cells (a node twice) dropped and each turned so that its
-    Jacobian at its first node is positive."""
+    Jacobian at its centroid, from the element module's own shape functions, is positive."""
     keep = np.array([len(set(c)) == len(c) for c in cells.tolist()], bool)
-    cells = cells[keep]
-    (i, j, k), flip = _ORIENT[kind]
-    p0 = points[cells[:, 0]]
-    vol = np.einsum(
-        "mi,mi->m",
-        np.cross(points[cells[:, i]] - p0, points[cells[:, j]] - p0),
-        points[cells[:, k]] - p0,
-    )
-    cells = cells.copy()
-    cells[vol < 0] = cells[vol < 0][:, flip]
+    cells = cells[keep].copy()
+    jac = np.einsum("mki,kj->mij", points[cells], centre_shape_gradients(kind))
+    inverted = np.linalg.det(jac) < 0
+    cells[inverted] = cells[inverted][:, _FLIP[kind]]
     return cells
 
 
-def _rounded_nodes(points, cells, a, r, c0, tol) -> np.ndarray:
+def _rounded_nodes(points, a, r, c0, tol) -> np.ndarray:
     """Surface nodes (on the rounded box, distance r from the inner box) on an edge's or a
     corner's rounding: at or beyond the inner box's bounds along two axes or more (an axis
     where the inner box has no extent counts for every node), so the tangent lines where a

@@ -106,6 +106,7 @@ __all__ = [
     "ELEMENT_KINDS",
     "SolidMaterial",
     "SolidReference",
+    "centre_shape_gradients",
     "polar_rotation",
     "scatter_forces",
     "solid_forces",
@@ -240,6 +241,15 @@ def _shape_functions(kind: str, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         ).copy()
         return n, dn
     raise AssertionError(kind)
+
+
+def centre_shape_gradients(kind: str) -> np.ndarray:
+    """Derivatives dN/d(xi, eta, zeta) (k, 3) of ``kind``'s shape functions at its
+    reference centroid: with node positions ``x`` (k, 3), ``x.T @ dN`` is the element's
+    Jacobian there (its sign tells the element's orientation, its ratio to the reference
+    one the mean deformation of a linear element)."""
+    key = _normalise_kind(kind)
+    return _shape_functions(key, _CENTROIDS[key])[1][0]
 
 
 def _quadrature(kind: str) -> tuple[np.ndarray, np.ndarray]:
