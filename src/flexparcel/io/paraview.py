@@ -41,8 +41,6 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from flexparcel.elements.solid import centre_shape_gradients
-
 __all__ = [
     "PARTS_VERSION",
     "write_paraview",
@@ -291,13 +289,27 @@ _HEX_XI = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
                     [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], float)  # fmt: skip
 
 
+# wedge (triangle 0-1-2 at t = -1, 3-4-5 at t = +1): dN/d(r, s, t) at its centre (1/3, 1/3, 0).
+# Written out here, as the hex's and tet's are, and not taken from elements.solid's shape
+# functions: io is read by the calibration and selection toolkits, which must load no FE
+# code (tests/test_layering.py); tests/test_paraview_export.py checks it against the hex.
+_WEDGE_CENTRE_DN = np.array(
+    [[-0.5, -0.5, -1 / 6], [0.5, 0.0, -1 / 6], [0.0, 0.5, -1 / 6],
+     [-0.5, -0.5, 1 / 6], [0.5, 0.0, 1 / 6], [0.0, 0.5, 1 / 6]]
+)  # fmt: skip
+
+
 def _solid_strain(ref: np.ndarray, cur: np.ndarray, conn: np.ndarray) -> np.ndarray | None:
     """Green-Lagrange strain tensor at each solid cell's centre (m, 3, 3); hexahedra (VTK
     order), wedges and tetrahedra; None for other kinds."""
-    kind = {8: "hex8", 6: "wedge6", 4: "tet4"}.get(conn.shape[1])
-    if kind is None:
+    if conn.shape[1] == 8:
+        dN = _HEX_XI / 8.0  # derivatives of the trilinear shape functions at the centre
+    elif conn.shape[1] == 6:
+        dN = _WEDGE_CENTRE_DN
+    elif conn.shape[1] == 4:
+        dN = np.array([[-1, -1, -1], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    else:
         return None
-    dN = centre_shape_gradients(kind)
     Jx0 = np.einsum("mki,kj->mij", ref[conn], dN)
     Jx = np.einsum("mki,kj->mij", cur[conn], dN)
     F = Jx @ np.linalg.inv(Jx0)
