@@ -10,6 +10,7 @@ the finite-element code):
 * :class:`GPRSurrogate` - Gaussian-process surrogates with the kernel chosen by cross-validation;
 * :class:`CoKrigingSurrogate` - multi-fidelity co-kriging (Kennedy & O'Hagan 2000);
 * :func:`weighted_error`, :class:`NelderMeadCalibrator` - the paper's eq. (11) and its minimiser;
+* :class:`ReachClassifier` - where a simulator reaches its responses, which bounds the optimum;
 * :class:`StudyStore`, :func:`run_campaign` - the resumable SQLite study store and parallel runs;
 * :func:`register_simulator` - how simulators make themselves known by name;
 * :func:`load_study`, :class:`Study` - study.toml and the pipeline stages behind
@@ -29,6 +30,7 @@ from flexparcel.calibration.execution import CampaignReport, run_campaign
 from flexparcel.calibration.multifidelity import CoKrigingSurrogate
 from flexparcel.calibration.optimise import NelderMeadCalibrator, range_weights, weighted_error
 from flexparcel.calibration.parameters import Parameter, ParameterSpace, Target
+from flexparcel.calibration.reach import ReachClassifier
 from flexparcel.calibration.screening import AnovaScreening, lenth_pse, screen_responses
 from flexparcel.calibration.simulators import (
     available_simulators,
@@ -63,6 +65,7 @@ __all__ = [
     "weighted_error",
     "range_weights",
     "NelderMeadCalibrator",
+    "ReachClassifier",
     "SCHEMA_VERSION",
     "RunSpec",
     "StudyStore",

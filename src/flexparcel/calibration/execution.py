@@ -42,7 +42,7 @@ from flexparcel.calibration.simulators import get_simulator
 from flexparcel.calibration.store import StudyStore, worker_label
 from flexparcel.io.lifetime import die_with_parent
 
-__all__ = ["CampaignReport", "execute_run", "run_campaign"]
+__all__ = ["CampaignReport", "execute_run", "not_retried", "run_campaign"]
 
 _MAX_ERROR_CHARS = 8000
 
@@ -50,7 +50,9 @@ NOT_RETRIED = "not retried (the simulator's outcome, the same on every attempt):
 """Start of the stored error of a failed run that is not retried."""
 
 
-def _not_retried(error: str | None) -> bool:
+def not_retried(error: str | None) -> bool:
+    """Whether a run's stored ``error`` is the simulator's outcome (a response not reached),
+    recorded once and not retried."""
     return bool(error) and str(error).startswith(NOT_RETRIED)
 
 
@@ -253,7 +255,7 @@ def run_campaign(
             if r["status"] == "done":
                 report.already_done += 1
                 continue
-            spent = r["attempts"] >= 1 + retries or _not_retried(r.get("error"))
+            spent = r["attempts"] >= 1 + retries or not_retried(r.get("error"))
             if r["status"] == "failed" and not retry_failed and spent:
                 report.failed.append(key)
                 continue
@@ -347,7 +349,7 @@ def run_campaign(
                         worker=outcome.get("worker", ""),
                     )
                     again = store.get_runs([key])[0]["attempts"] < budget[key]
-                    if again and not _not_retried(outcome["error"]):
+                    if again and not not_retried(outcome["error"]):
                         queue.append(key)
                     else:
                         report.failed.append(key)

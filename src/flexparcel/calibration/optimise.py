@@ -71,6 +71,8 @@ class NelderMeadCalibrator:
         Optimum in unit coordinates.
     error_ : float
         Weighted error at the optimum.
+    penalty_ : float
+        The penalty at the optimum (0 without one).
     starts_ : list of dict
         Per start: ``u0``, ``u``, ``x``, ``error``, ``nit``, ``nfev``, ``success``, ``message``.
     """
@@ -96,11 +98,16 @@ class NelderMeadCalibrator:
         space: ParameterSpace,
         z_target,
         weights,
+        penalty: Callable[[np.ndarray], float] | None = None,
     ) -> NelderMeadCalibrator:
-        """Minimise ``weighted_error(z_target, predict(x), weights)`` over ``space``.
+        """Minimise ``weighted_error(z_target, predict(x), weights) + penalty(x)`` over
+        ``space``.
 
         ``predict`` maps one physical point, shape (d,), to the predicted responses, shape
-        (n_targets,), in the order of ``z_target`` and ``weights``.
+        (n_targets,), in the order of ``z_target`` and ``weights``. ``penalty`` (optional,
+        >= 0, zero where ``x`` is admissible) keeps the optimum out of a region the surrogates
+        cannot see, e.g. where the simulator does not reach its responses; ``error_`` and each
+        start's ``error`` are the weighted error alone, ``penalty_`` the penalty at the optimum.
         """
         from scipy.optimize import minimize
 
@@ -110,9 +117,14 @@ class NelderMeadCalibrator:
         z_target = np.asarray(z_target, dtype=float)
         weights = np.asarray(weights, dtype=float)
 
+        def to_x(u: np.ndarray) -> np.ndarray:
+            return space.from_unit(np.clip(u, 0.0, 1.0)[None, :])[0]
+
+        def error(u: np.ndarray) -> float:
+            return weighted_error(z_target, predict(to_x(u)), weights)
+
         def objective(u: np.ndarray) -> float:
-            x = space.from_unit(np.clip(u, 0.0, 1.0)[None, :])[0]
-            return weighted_error(z_target, predict(x), weights)
+            return error(u) + (penalty(to_x(u)) if penalty is not None else 0.0)
 
         starts = [np.full(d, 0.5)]
         if self.n_starts > 1:
@@ -130,16 +142,18 @@ class NelderMeadCalibrator:
                 {
                     "u0": [float(v) for v in u0],
                     "u": [float(v) for v in u],
-                    "x": [float(v) for v in space.from_unit(u[None, :])[0]],
-                    "error": float(res.fun),
+                    "x": [float(v) for v in to_x(u)],
+                    "error": error(u),
+                    "penalty": float(penalty(to_x(u))) if penalty is not None else 0.0,
                     "nit": int(res.nit),
                     "nfev": int(res.nfev),
                     "success": bool(res.success),
                     "message": str(res.message),
                 }
             )
-        best = min(self.starts_, key=lambda s: s["error"])
+        best = min(self.starts_, key=lambda s: s["error"] + s["penalty"])
         self.u_ = np.asarray(best["u"])
         self.x_ = np.asarray(best["x"])
         self.error_ = best["error"]
+        self.penalty_ = best["penalty"]
         return self

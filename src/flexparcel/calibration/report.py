@@ -68,6 +68,36 @@ def _loo_sentence(gp: dict, unit: str) -> str:
     )
 
 
+def _reach_sentence(opt: dict) -> str:
+    """Where a design had runs that did not reach their responses: the optimum's probability
+    of reaching them, against the bound the optimiser kept (empty otherwise)."""
+    reach = opt.get("reach") or {}
+    if not reach:
+        return ""
+    p_min = opt["min_reach_probability"]
+    parts = [
+        f"{html.escape(e)} {_fmt(v['probability'], 3)} ({v['n_not_reached']} of "
+        f"{v['n_reached'] + v['n_not_reached']} design runs did not reach their responses)"
+        for e, v in reach.items()
+    ]
+    bound = (
+        f"the optimiser kept it at least {_fmt(p_min, 3)} (quadratic penalty)"
+        if p_min > 0
+        else "unconstrained (min_reach_probability = 0)"
+    )
+    low = [e for e, v in reach.items() if v["probability"] < max(p_min, 0.5) - 0.05]
+    warn = (
+        f" <b>The optimum lies where {', '.join(map(html.escape, low))} may not reach its "
+        "responses: the surrogates extrapolate there.</b>"
+        if low
+        else ""
+    )
+    return (
+        "<p>Probability that a run at the optimum reaches its responses, by a Gaussian-process "
+        f"classifier of the design's outcomes: {'; '.join(parts)}; {bound}.{warn}</p>"
+    )
+
+
 def _table(header: list[str], rows: list[list], classes: list[str] | None = None) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = []
@@ -252,7 +282,10 @@ def _residual_figure(figs: _Figures, exp: str, r: str, gp: dict, unit: str) -> s
     return figs.add(fig, f"residuals_{exp}_{r}")
 
 
-def _contour_figure(figs, study, exp, r, surrogate, fit, target, optimum) -> str:
+def _contour_figure(figs, study, exp, r, surrogate, fit, target, optimum, reach=None) -> str:
+    """The surrogate of response ``r`` over its two most influential inputs, with the target
+    line and the optimum; with ``reach`` (a :class:`ReachClassifier`) and two or more inputs
+    also its 0.5 line and the design runs that did not reach their responses."""
     import matplotlib.pyplot as plt
 
     active = fit["active"]
@@ -293,6 +326,8 @@ def _contour_figure(figs, study, exp, r, surrogate, fit, target, optimum) -> str
     if Z.min() <= target.value <= Z.max():
         ax.contour(XI, XJ, Z, levels=[target.value], colors="tab:green", linewidths=2.5)
     ax.plot([], [], color="tab:green", lw=2.5, label=f"target {_fmt(target.value)}")
+    if reach is not None:
+        _draw_reach(ax, study, exp, fit, reach, X, (XI, XJ), (i, j))
     if optimum:
         ax.plot(x_opt[i], x_opt[j], marker="*", color="tab:red", ms=16, mec="w", label="optimum")
     p_i, p_j = space.parameters[i], space.parameters[j]
@@ -312,6 +347,21 @@ def _contour_figure(figs, study, exp, r, surrogate, fit, target, optimum) -> str
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=8, loc="best")
     return figs.add(fig, f"contour_{exp}_{r}")
+
+
+def _draw_reach(ax, study, exp, fit, reach, X, grid, axes) -> None:
+    """The classifier's 0.5 line (dashed) and the runs not reached (x) on a contour plot."""
+    XI, XJ = grid
+    i, j = axes
+    P = reach.probability(X).reshape(XI.shape)
+    if P.min() < 0.5 < P.max():
+        ax.contour(XI, XJ, P, levels=[0.5], colors="w", linewidths=1.8, linestyles="--")
+        ax.plot([], [], color="w", ls="--", lw=1.8, label="reach probability 0.5")
+    outcomes = zip(fit["reach"]["run_keys"], fit["reach"]["reached"], strict=True)
+    rows = study.store.get_runs([k for k, ok in outcomes if not ok])
+    sub = study.config.experiment_space(exp, fit["active"])
+    Xn = sub.from_dicts(r["params"] for r in rows)
+    ax.plot(Xn[:, i], Xn[:, j], "x", color="tab:red", ms=7, mew=2, label="not reached")
 
 
 # -- report ----------------------------------------------------------------------------------
@@ -409,6 +459,7 @@ def write_report(study) -> Path:
         if fit:
             add("<h3>Surrogates (Gaussian process regression)</h3>")
             surrogates = study._surrogates(exp, fit)
+            reach = study.reach_classifiers({e: fit}).get(e)
             for t in exp.targets:
                 r = t.response
                 gp = fit["responses"][r]
@@ -448,7 +499,7 @@ def write_report(study) -> Path:
                         f"{_fmt(fit['range'][r][0])} … {_fmt(fit['range'][r][1])}).</p>"
                     )
                 add(_residual_figure(figs, e, r, gp, t.unit))
-                add(_contour_figure(figs, study, e, r, surrogates[r], fit, t, optimum))
+                add(_contour_figure(figs, study, e, r, surrogates[r], fit, t, optimum, reach))
 
     if opt:
         add("<h2>Calibration</h2>")
@@ -474,13 +525,15 @@ def write_report(study) -> Path:
             for t in opt["targets"]
         ]
         add(_table(["response", "target", "predicted", "GP std", "weight", "weight from"], rows))
+        add(_reach_sentence(opt))
         srows = [
-            [i + 1, s["error"], s["nit"], s["success"], *s["x"]]
+            [i + 1, s["error"], s.get("penalty", 0.0), s["nit"], s["success"], *s["x"]]
             for i, s in enumerate(opt["starts"])
         ]
+        head = ["start", "error", "reach penalty", "iterations", "converged"]
         add(
             "<details><summary>Nelder–Mead starts</summary>"
-            + _table(["start", "error", "iterations", "converged", *opt["calibrated"]], srows)
+            + _table([*head, *opt["calibrated"]], srows)
             + "</details>"
         )
     if val:

@@ -42,10 +42,11 @@ from flexparcel.calibration.designs import (
     full_factorial,
     latin_hypercube,
 )
-from flexparcel.calibration.execution import CampaignReport, run_campaign
+from flexparcel.calibration.execution import CampaignReport, not_retried, run_campaign
 from flexparcel.calibration.multifidelity import CoKrigingSurrogate
 from flexparcel.calibration.optimise import NelderMeadCalibrator, weighted_error
 from flexparcel.calibration.parameters import Parameter, ParameterSpace, Target
+from flexparcel.calibration.reach import ReachClassifier
 from flexparcel.calibration.screening import screen_responses
 from flexparcel.calibration.simulators import get_simulator
 from flexparcel.calibration.store import RunSpec, StudyStore
@@ -148,6 +149,9 @@ class StudyConfig:
     opt_starts: int = 8
     opt_maxiter: int | None = None
     opt_parameters: tuple[str, ...] | None = None
+    #: The optimum's least probability of reaching every experiment's responses, by the
+    #: classifier of the runs that did and did not reach them (:mod:`.reach`); 0: unconstrained.
+    min_reach_probability: float = 0.5
     workers: int | None = None
     retries: int = 2
     threads: int = 1
@@ -398,11 +402,14 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
         path,
         "optimisation",
         top.get("optimisation", "table", {}),
-        ("starts", "maxiter", "parameters"),
+        ("starts", "maxiter", "parameters", "min_reach_probability"),
     )
     starts = op.get("starts", "int", 8)
     if starts < 1:
         op.fail("starts", "must be >= 1")
+    min_reach = float(op.get("min_reach_probability", "num", 0.5))
+    if not 0.0 <= min_reach < 1.0:
+        op.fail("min_reach_probability", f"must lie in [0, 1), got {min_reach!r}")
     maxiter = op.get("maxiter", "int")
     opt_params = op.str_list("parameters")
     if opt_params is not None:
@@ -459,6 +466,7 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
         opt_starts=starts,
         opt_maxiter=maxiter,
         opt_parameters=tuple(opt_params) if opt_params is not None else None,
+        min_reach_probability=min_reach,
         workers=workers,
         retries=retries,
         threads=threads,
@@ -765,6 +773,10 @@ def _parse_experiment(
 
 
 # -- pipeline --------------------------------------------------------------------------------
+
+
+#: Weight of the optimiser's penalty on a reach probability below ``min_reach_probability``.
+REACH_PENALTY = 1e4
 
 
 def _seed(*parts) -> int:
@@ -1163,13 +1175,16 @@ class Study:
                 "responses": {},
                 "range": {},
             }
-            high = []
+            high, hrows = [], []
             if c.fidelity is not None:
                 hrows = self.store.get_runs(self.store.design_keys("design-high", exp.name))
                 high = [r for r in hrows if r["status"] == "done"]
                 result["high_run_keys"] = [r["run_key"] for r in high]
                 result["n_high_failed"] = len(hrows) - len(high)
                 Xh = sub.from_dicts(r["params"] for r in high)
+            reach = self._fit_reach(exp, sub, rows + hrows)
+            if reach is not None:
+                result["reach"] = reach
             for t in exp.targets:
                 y = np.array([r["responses"][t.response] for r in done])
                 common = dict(
@@ -1204,6 +1219,34 @@ class Study:
             out[exp.name] = result
         if bar is not None:
             bar.close()
+        return out
+
+    def _fit_reach(self, exp: ExperimentConfig, sub: ParameterSpace, rows: list) -> dict | None:
+        """The classifier of where ``exp``'s simulator reaches its responses (:mod:`.reach`),
+        from its design runs of every level (a point not reached at either level counts as
+        not reached there), as stored data; None where every run reached them, or fewer than
+        two did. Runs that failed otherwise (a crash) say nothing about the model and are
+        left out."""
+        known = [r for r in rows if r["status"] == "done" or not_retried(r["error"])]
+        reached = [r["status"] == "done" for r in known]
+        if all(reached) or sum(reached) < 2:
+            return None
+        X = sub.from_dicts(r["params"] for r in known)
+        seed = _seed(self.config.random_state, exp.name, "reach")
+        clf = ReachClassifier(sub, random_state=seed).fit(X, reached)
+        return {**clf.to_dict(), "run_keys": [r["run_key"] for r in known], "reached": reached}
+
+    def reach_classifiers(self, fits: Mapping[str, dict]) -> dict:
+        """``{experiment: ReachClassifier}`` rebuilt from the fit results ``fits`` of the
+        experiments whose design has runs that did not reach their responses."""
+        out = {}
+        for e, fit in fits.items():
+            if "reach" not in fit:
+                continue
+            sub = self.config.experiment_space(e, fit["active"])
+            rows = self.store.get_runs(fit["reach"]["run_keys"])
+            X = sub.from_dicts(r["params"] for r in rows)
+            out[e] = ReachClassifier.from_dict(fit["reach"], sub, X, fit["reach"]["reached"])
         return out
 
     def optimisation_space(self, names: Sequence[str]) -> ParameterSpace:
@@ -1436,13 +1479,34 @@ class Study:
             rs = [t.response for t in c.experiments[e].targets]
             plan.append((e, cols, fixed, rs))
 
+        def experiment_point(x, cols, fixed):
+            xe = fixed.copy()
+            for j, col in enumerate(cols):
+                if col is not None:
+                    xe[j] = x[col]
+            return xe
+
+        reach = self.reach_classifiers(fits)
+        p_min = c.min_reach_probability
+
+        def reach_probability(x) -> dict:
+            return {
+                e: float(reach[e].probability(experiment_point(x, cols, fixed)[None, :])[0])
+                for e, cols, fixed, _ in plan
+                if e in reach
+            }
+
+        def reach_penalty(x) -> float:
+            # A quadratic penalty on the shortfall: at REACH_PENALTY = 1e4 a shortfall of
+            # 0.01 costs 1, as much as one target missed by its whole design range.
+            return REACH_PENALTY * sum(
+                max(0.0, p_min - p) ** 2 for p in reach_probability(x).values()
+            )
+
         def predict_all(x, return_std=False):
             preds, stds = [], []
             for e, cols, fixed, rs in plan:
-                xe = fixed.copy()
-                for j, col in enumerate(cols):
-                    if col is not None:
-                        xe[j] = x[col]
+                xe = experiment_point(x, cols, fixed)
                 for r in rs:
                     if return_std:
                         m, s = surrogates[e][r].predict(xe[None, :], return_std=True)
@@ -1456,7 +1520,13 @@ class Study:
             n_starts=c.opt_starts,
             maxiter=c.opt_maxiter,
             random_state=_seed(c.random_state, "optimise"),
-        ).fit(predict_all, space, z_target, weights)
+        ).fit(
+            predict_all,
+            space,
+            z_target,
+            weights,
+            penalty=reach_penalty if reach and p_min > 0 else None,
+        )
         pred, std = predict_all(opt.x_, return_std=True)
         optimum = dict(nominal)
         optimum.update({n: float(v) for n, v in zip(names, opt.x_, strict=True)})
@@ -1466,6 +1536,15 @@ class Study:
             "optimum_unit": {n: float(v) for n, v in zip(names, opt.u_, strict=True)},
             "error": opt.error_,
             "error_check": weighted_error(z_target, pred, weights),
+            "min_reach_probability": p_min,
+            "reach": {
+                e: {
+                    "probability": p,
+                    "n_reached": reach[e].n_reached_,
+                    "n_not_reached": reach[e].n_not_reached_,
+                }
+                for e, p in reach_probability(opt.x_).items()
+            },
             "targets": [
                 {
                     "experiment": t.experiment,

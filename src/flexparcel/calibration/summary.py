@@ -17,6 +17,10 @@ campaign wants first, next to the full ``results.json`` and ``report.html``.
   high runs (``holdout_rmse``, ``high_only_holdout_rmse``, ``n_holdout``) and leaving each high
   run out once (``loo_rmse``, ``high_only_loo_rmse``, ``n_high``), in the response's unit;
   null before the fit stage;
+* ``reach``: per experiment whose design has runs that did not reach their responses, the
+  probability that a run at the optimum reaches them (:mod:`flexparcel.calibration.reach`),
+  with the runs of each outcome, and the optimiser's ``min_reach_probability``; null before the
+  optimisation or where every run reached them;
 * ``wall_s``: ``runs`` (the simulators' wall times added up, what one worker would have
   spent) and ``elapsed`` (first run started to last run finished, breaks between sittings
   included).
@@ -55,6 +59,7 @@ def campaign_summary(study) -> dict:
         "validation": _validation(c, val, summary_names(c.experiments.values())) if val else None,
         "run_counts": _run_counts(c, store, runs),
         "multifidelity": _multifidelity(c, store) if c.fidelity is not None else None,
+        "reach": _reach(opt),
         "wall_s": _wall(runs),
     }
     return summary
@@ -80,6 +85,12 @@ def _multifidelity(c, store) -> dict | None:
             for r, g in fit["responses"].items()
         }
     return out
+
+
+def _reach(opt: dict | None) -> dict | None:
+    if not opt or not opt.get("reach"):
+        return None
+    return {"min_reach_probability": opt["min_reach_probability"], **opt["reach"]}
 
 
 _MF_KEYS = ("holdout_rmse", "high_only_holdout_rmse", "loo_rmse", "high_only_loo_rmse")
