@@ -141,8 +141,13 @@ def test_the_optimum_stays_where_the_simulator_reaches_its_responses(tmp_path):
     assert _unit_e(opt["optimum"]["youngs_modulus"]) <= U_STIFF + 1.0 / 24
     rows = out["validate"]["rows"]
     assert {r["status"] for r in rows} == {"done"}, rows
+    # the target first swing (87.6 mm) lies below every reached run's (>= 92.8 mm at the
+    # stiffest reached E): outside the design's range, which the report says
+    first = next(t for t in opt["targets"] if t["response"] == "first_swing_mm")
+    assert first["in_design_range"] is False and first["target"] < first["design_range"][0]
     # the report says it, and summary.json carries it
     html = out["report"].read_text()
+    assert "Targets outside the range of their design runs" in html
     assert "Probability that a run at the optimum reaches its responses" in html
     assert "may not reach" not in html
     summary = json.loads((out["report"].parent / "summary.json").read_text())

@@ -68,6 +68,26 @@ def _loo_sentence(gp: dict, unit: str) -> str:
     )
 
 
+def _range_sentence(opt: dict) -> str:
+    """A warning for each target outside its response's range over the design (empty where
+    every target lies inside)."""
+    out = [t for t in opt["targets"] if t.get("in_design_range") is False]
+    if not out:
+        return ""
+    parts = [
+        f"{html.escape(t['experiment'])}.{html.escape(t['response'])}: target "
+        f"{_fmt(t['target'])} {html.escape(t['unit'])}, design {_fmt(t['design_range'][0])} … "
+        f"{_fmt(t['design_range'][1])}"
+        for t in out
+    ]
+    return (
+        f"<p><b>Targets outside the range of their design runs</b> ({'; '.join(parts)}): no "
+        "run of the design reached them, so the optimum trades them against the other "
+        "targets by their weights, and with weights 1/range an unreachable target may set the "
+        "optimum on its own.</p>"
+    )
+
+
 def _reach_sentence(opt: dict) -> str:
     """Where a design had runs that did not reach their responses: the optimum's probability
     of reaching them, against the bound the optimiser kept (empty otherwise)."""
@@ -525,6 +545,7 @@ def write_report(study) -> Path:
             for t in opt["targets"]
         ]
         add(_table(["response", "target", "predicted", "GP std", "weight", "weight from"], rows))
+        add(_range_sentence(opt))
         add(_reach_sentence(opt))
         srows = [
             [i + 1, s["error"], s.get("penalty", 0.0), s["nit"], s["success"], *s["x"]]

@@ -1556,6 +1556,11 @@ class Study:
                     "predicted": float(p),
                     "std": float(s),
                     "spread": t.spread,
+                    # the response's range over the design runs (the high level's with
+                    # fidelity levels): a target outside it no parameter set of the design
+                    # reached, and the optimum trades it against the others
+                    "design_range": fits[t.experiment]["range"][t.response],
+                    "in_design_range": _within(t.value, fits[t.experiment]["range"][t.response]),
                 }
                 for t, w, p, s in zip(targets, weights, pred, std, strict=True)
             ],
@@ -1674,6 +1679,10 @@ class Study:
                 f"{self.config.purpose} study (purpose = '{self.config.purpose}'); its stages "
                 f"are {', '.join(self.config.stages)}"
             )
+
+
+def _within(value: float, rng: Sequence[float]) -> bool:
+    return float(rng[0]) <= value <= float(rng[1])
 
 
 def _span(rng: Sequence[float], key: str) -> float:
