@@ -124,6 +124,17 @@ def write(tmp_path: Path, text: str) -> Path:
             'second_swing_mm = { value = 35.0, reference = "27" }',
             r"\[experiments\.swing\.targets\.second_swing_mm\] reference: must be a number",
         ),
+        (
+            "second_swing_mm = 35.0",
+            "second_swing_mm = { value = 35.0, weight = -1 }",
+            r"\[experiments\.swing\.targets\.second_swing_mm\] weight: must be >= 0",
+        ),
+        (
+            'first_swing_mm = { value = 97.2, unit = "mm" }\nsecond_swing_mm = 35.0',
+            "first_swing_mm = { value = 97.2, weight = 0 }\nsecond_swing_mm = { value = 35.0, "
+            "weight = 0 }",
+            r"targets: every target has weight = 0",
+        ),
     ],
 )
 def test_bad_study_files_name_the_field(tmp_path, old, new, message):
@@ -132,6 +143,25 @@ def test_bad_study_files_name_the_field(tmp_path, old, new, message):
     with pytest.raises(StudyConfigError, match=message) as info:
         load_study(path)
     assert str(path) in str(info.value)
+
+
+def test_a_target_of_weight_zero_is_validated_but_not_fitted(tmp_path):
+    # the analytic swing at 16 design runs: with the second swing's weight 0 the optimum
+    # answers the first swing alone, whose surrogate it meets to the optimiser's tolerance;
+    # the second swing is still predicted and re-run at the optimum
+    text = BASE.replace("second_swing_mm = 35.0", "second_swing_mm = { value = 35.0, weight = 0 }")
+    text = text.replace("runs = 6", "runs = 16")
+    fast = '[surrogate]\nkernels = ["matern52"]\nrestarts = 0\n\n[execution]'
+    text = text.replace("[execution]", fast)
+    out = Study(load_study(write(tmp_path, text)), progress=False).run()
+    first, second = out["optimise"]["targets"]
+    assert second["weight"] == 0.0 and second["weight_source"] == "given"
+    assert abs(first["predicted"] - 97.2) < 1e-3 * (first["design_range"][1] - 97.2)
+    assert out["optimise"]["error"] == pytest.approx(
+        (first["weight"] * (97.2 - first["predicted"])) ** 2, abs=1e-15
+    )
+    rows = {r["response"]: r for r in out["validate"]["rows"]}
+    assert rows["second_swing_mm"]["simulated"] is not None
 
 
 def test_unknown_simulator_and_unused_parameter(tmp_path):

@@ -214,7 +214,9 @@ class Target:
         The measured value, in the response's unit.
     weight:
         Weight ``w_i`` in ``sum_i (w_i (Z_target,i - Z_pred,i))**2`` [1/unit]. ``None`` means
-        the paper's default, ``1 / (max - min)`` of the response over the design runs.
+        the paper's default, ``1 / (max - min)`` of the response over the design runs; 0
+        leaves the target out of the objective (still fitted, reported and validated), e.g.
+        for a target no run of the design comes near, which 1/range would let set the optimum.
     spread:
         Optional measurement spread (e.g. a standard deviation of repeated tests) [unit]; the
         report flags validation runs that miss the target by more than it.
@@ -249,9 +251,10 @@ class Target:
             raise ValueError(
                 f"target {self.experiment}.{self.response}: value must be a finite number"
             )
-        if self.weight is not None and not (math.isfinite(self.weight) and self.weight > 0):
+        if self.weight is not None and not (math.isfinite(self.weight) and self.weight >= 0):
             raise ValueError(
-                f"target {self.experiment}.{self.response}: weight must be a positive number"
+                f"target {self.experiment}.{self.response}: weight must be a number >= 0 "
+                "(0: reported and validated, not fitted)"
             )
         if self.spread is not None and not (math.isfinite(self.spread) and self.spread >= 0):
             raise ValueError(

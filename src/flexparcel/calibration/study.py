@@ -435,6 +435,11 @@ def _parse(path: Path, raw: Mapping) -> StudyConfig:
         summary_names(experiments.values())
     except ValueError as exc:
         _Fields(path, "experiments", {}, ()).fail("targets", str(exc))
+    weights = [t.weight for e in experiments.values() for t in e.targets]
+    if weights and all(w == 0 for w in weights):
+        _Fields(path, "experiments", {}, ()).fail(
+            "targets", "every target has weight = 0: at least one must enter the objective"
+        )
     fidelity = _parse_fidelity(path, top, experiments)
     maps = _parse_maps(path, top, space, experiments, purpose)
     # The optimiser searches where every experiment that varies a parameter has data.
@@ -684,8 +689,8 @@ def _parse_experiment(
         value = tf.get("value", "num", required=True)
         weight = tf.get("weight", "num")
         spread = tf.get("spread", "num")
-        if weight is not None and weight <= 0:
-            tf.fail("weight", "must be > 0")
+        if weight is not None and weight < 0:
+            tf.fail("weight", "must be >= 0 (0: reported and validated, not fitted)")
         if spread is not None and spread < 0:
             tf.fail("spread", "must be >= 0")
         transform = tf.get("transform", "str", "none")
