@@ -69,16 +69,22 @@ def test_preset_mass_and_flat_size(name):
     assert 0.0 < c.packaging_mass < 0.5 * total
     # flat extents: the envelope (+ KP/BW's glued strip) to within one element. The flat size is
     # Table 2's outer size unless the content cannot fit (PB, KP: a 310 mm content in a 315 /
-    # 320 mm bag): then content + its height + the fit clearance, so it can close around it
+    # 320 mm bag): then content + its height + the fit clearance, so it can close around it.
+    # KP's gusseted bag wraps the height at its sealed ends only: its side walls give it, so
+    # its width is Table 2's
     h = build.element_size
     p = model.positions0[c.packaging]
     ext = p.max(axis=0) - p.min(axis=0)
     strip = GLUED_STRIP_WIDTH if build.has_glued_strip else 0.0
     fit = max(FIT_CLEARANCE, h)  # ConsignmentBuild.fit_clearance
+    side = 0.0 if spec.construction == "gusseted" else spec.content_height_mm
     need_l = (spec.content_length_mm + spec.content_height_mm) * 1e-3 + fit
-    need_w = (spec.content_width_mm + spec.content_height_mm) * 1e-3 + fit
+    need_w = (spec.content_width_mm + side) * 1e-3 + fit
     assert ext[0] == pytest.approx(max(spec.length_mm * 1e-3, need_l + strip), abs=h)
     assert ext[1] == pytest.approx(max(spec.width_mm * 1e-3, need_w), abs=h)
+    if name == "KP":  # the gusseted bag: Table 2's width exactly
+        assert spec.construction == "gusseted"
+        assert ext[1] == pytest.approx(spec.width_mm * 1e-3, abs=1e-12)
     if name in ("KPBW", "BW"):  # these fit: Table 2's outer size itself
         assert ext[0] == pytest.approx(spec.length_mm * 1e-3, abs=h)
         assert ext[1] == pytest.approx(spec.width_mm * 1e-3, abs=h)
@@ -569,15 +575,16 @@ def test_opening_force_doubles_from_its_start_pressure_up_to_the_cap():
 
 
 def test_kp_glue_stripe_takes_the_nearest_node_rows_on_an_odd_mesh():
-    # KP at 25 mm: 11 elements across the 280 mm flat width put no node row within the 20 mm
-    # stripe; the two rows nearest the centre line (y = +-12.7 mm) carry the glue instead
+    # KP at 25 mm: the bottom panel's middle strip (250 mm less the two 16 mm gussets) in
+    # 9 elements puts no node row within the 20 mm stripe; the two rows nearest the centre
+    # line (y = +-218 / 18 mm) carry the glue instead
     build = ConsignmentBuild.of("KP", element_size=0.025)
     b = ModelBuilder()
     c = add_consignment(b, build)
     model = b.finalize()
     glued = np.flatnonzero(np.isin(np.arange(model.node_count), model.slave_nodes))
     y = np.unique(np.round(model.positions0[glued, 1], 6))
-    assert y == pytest.approx([-0.0127273, 0.0127273], abs=1e-6)
+    assert y == pytest.approx([-0.218 / 18, 0.218 / 18], abs=1e-6)
     assert c.content_body is not None
 
 

@@ -80,7 +80,9 @@ def shell_cells(what: str, pts: np.ndarray, quads, triangles):
 
 def check_orientation(cells: list[np.ndarray]) -> None:
     """Within one mesh, an edge shared by two elements must be traversed in opposite directions
-    (consistent normals); the same directed edge twice means one of them is inverted."""
+    (consistent normals); the same directed edge twice means one of them is inverted. Where
+    more sheets meet at an edge (a seam through four plies), as many elements must run along
+    it one way as the other."""
     edges, owner = [], []
     for ci, c in enumerate(cells):
         k = c.shape[1]
@@ -90,8 +92,16 @@ def check_orientation(cells: list[np.ndarray]) -> None:
     e = np.concatenate(edges)
     own = np.concatenate(owner)
     keys, counts = np.unique(e, axis=0, return_counts=True)
-    if np.any(counts > 1):
-        a, b = keys[np.argmax(counts > 1)]
+    if not np.any(counts > 1):
+        return
+    undirected, inverse = np.unique(np.sort(keys, axis=1), axis=0, return_inverse=True)
+    forward = np.zeros(len(undirected), np.int64)
+    np.add.at(forward, inverse.ravel(), np.where(keys[:, 0] < keys[:, 1], counts, 0))
+    total = np.zeros(len(undirected), np.int64)
+    np.add.at(total, inverse.ravel(), counts)
+    bad = (counts > 1) & (2 * forward[inverse.ravel()] != total[inverse.ravel()])
+    if np.any(bad):
+        a, b = keys[np.argmax(bad)]
         idx = np.flatnonzero((e[:, 0] == a) & (e[:, 1] == b))
         first, second = (cells[own[i, 0]][own[i, 1]].tolist() for i in idx[:2])
         raise ValueError(

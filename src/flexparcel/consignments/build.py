@@ -1,21 +1,32 @@
 """Consignment builders: the paper's four consignments (Table 2) and user-defined ones.
 
-Each consignment is built bottom-up as in the paper (section 3.1): two packaging halves meshed
-with square shells and joined at their shared border nodes (a closed envelope), KP/BW's 10 mm
-glued strip of doubled thickness along one short side, and the content inside, a rigid rounded
-box or (PB) a hexahedral solid mesh. The packaging starts almost flat (the top layer 2 mm above
-the bottom one, see :func:`flexparcel.scenarios.envelope.two_layer_envelope`); the assembly
-(:mod:`flexparcel.consignments.assembly`) opens it with forces, switches the packaging-content
-contact on and lets the packaging close around the content, which leaves the prestress of the
-real packaging in the model.
+Each consignment is built bottom-up as in the paper (section 3.1): the packaging meshed with
+square shells, KP/BW's 10 mm glued strip of doubled thickness along one short side, and the
+content inside, a rigid rounded box or (PB) a hexahedral solid mesh. The packaging is built
+flat by its construction (``ConsignmentSpec.construction``):
+
+- ``"envelope"`` (KP/BW, PB, BW): two rectangles joined at their shared border nodes, the top
+  layer 2 mm above the bottom one (:func:`flexparcel.scenarios.envelope.two_layer_envelope`);
+- ``"gusseted"`` (KP): a flat-folded bag in six layers, a W-gusset along each long side and
+  sealed ends (:func:`flexparcel.scenarios.envelope.gusseted_envelope`). The folds are the
+  reference (stress-free) geometry, so once the bag is opened the film bends at its fold
+  lines and keeps their memory as prestress, which is what the paper's KP construction is
+  for (section 3.1.2, Figs. 13-14: eight layers folded, unfolded by forces). Its side walls
+  give the content's height, so the flat bag is Table 2's width; its sealed ends are wedges.
+
+The assembly (:mod:`flexparcel.consignments.assembly`) opens the packaging with forces,
+switches the packaging-content contact on and lets the packaging close around the content,
+which leaves the prestress of the real packaging in the model.
 
 Simplifications, written down rather than hidden:
 
-- KP's wedge folded from eight layers is built as the same two-layer envelope (made of kraft
-  paper, with its glue stripe FDR); the unfolding by forces is the envelope's opening.
-- BW's rounded short sides come from the opening as well (the layers bend round the content at
+- KP's gusseted bag is not the paper's eight-layer wedge: its ends are sealed seams, not
+  folded, so the flat bag must still be content + content height + one element long to hold
+  its content, longer than Table 2's 320 mm; both its layers are pulled open (the paper holds
+  one and pulls the other). Its content is glued to the bottom panel with the FDR stripe.
+- BW's rounded short sides come from the opening (the layers bend round the content at
   every border); the FDR-and-torque fold of the paper is not reproduced.
-- The flat packaging is made just large enough that the content fits once it is wrapped:
+- An envelope is made just large enough that the content fits once it is wrapped:
   ``max(outer, content + content height + 4 mm)`` in length and width (a flat bag of exactly the
   filled outer size cannot hold a content of the same width).
 
@@ -40,7 +51,7 @@ from flexparcel.elements.solid import SolidMaterial, solid_reference_data
 from flexparcel.model.materials import ShellMaterial
 from flexparcel.model.rigid import RoundedBox
 from flexparcel.model.schedule import Schedule
-from flexparcel.scenarios.envelope import two_layer_envelope
+from flexparcel.scenarios.envelope import gusseted_envelope, two_layer_envelope
 
 __all__ = [
     "PRESETS",
@@ -66,7 +77,7 @@ PRESETS: dict[str, ConsignmentSpec] = {
     ),
     "KP": ConsignmentSpec(
         "KP", "kraft_paper", 320, 250, 30, "rigid", 310, 225, 30, 380,
-        content_fixed_to_packaging=True, based_on_cluster=4,
+        content_fixed_to_packaging=True, based_on_cluster=4, construction="gusseted",
     ),
     "BW": ConsignmentSpec(
         "BW", "bubble_wrap", 200, 150, 20, "rigid", 165, 125, 20, 80,
@@ -83,6 +94,8 @@ CONTENT_EDGE_RADIUS = 3e-3  # rounded edges of the cardboard box contents [m]
 FLEXIBLE_CONTENT_EDGE_RADIUS = 0.5  # flexible content: edge radius / content height
 CONTENT_CLEARANCE = 0.2e-3  # content above the bottom layer's contact surface [m]
 GLUE_STRIPE = (0.6, 0.020)  # KP: stripe length (fraction of content length), width [m]
+GUSSET_SPACING = 1e-3  # gusseted bag: layers apart in the folded state [m]
+GUSSET_SLACK = 2e-3  # gusseted bag: side wall height beyond the content's height [m]
 
 
 def preset(name: str) -> ConsignmentSpec:
@@ -157,12 +170,25 @@ class ConsignmentBuild:
 
     @property
     def flat_size(self) -> tuple[float, float]:
-        """Length and width [m] of the flat packaging (without KP/BW's glued strip)."""
+        """Length and width [m] of the flat packaging (without KP/BW's glued strip).
+
+        An envelope wraps its content's height at both ends and both sides, so it is at least
+        content + height + :attr:`fit_clearance` long and wide. A gusseted bag wraps it only
+        at its sealed ends: its side walls give the height, so its width is Table 2's (at
+        least the content's + :attr:`fit_clearance`)."""
         s = self.spec
         strip = GLUED_STRIP_WIDTH if self.has_glued_strip else 0.0
         need_l = (s.content_length_mm + s.content_height_mm) * 1e-3 + self.fit_clearance
-        need_w = (s.content_width_mm + s.content_height_mm) * 1e-3 + self.fit_clearance
+        side = 0.0 if s.construction == "gusseted" else s.content_height_mm
+        need_w = (s.content_width_mm + side) * 1e-3 + self.fit_clearance
         return max(s.length_mm * 1e-3 - strip, need_l), max(s.width_mm * 1e-3, need_w)
+
+    @property
+    def gusset_depth(self) -> float:
+        """Depth [m] of each folded side gusset of a gusseted bag: half its unfolded wall's
+        height, the content's height + :data:`GUSSET_SLACK` (room for the film on both
+        faces and the content's clearance above the bottom layer)."""
+        return 0.5 * (self.spec.content_height_mm * 1e-3 + GUSSET_SLACK)
 
     @property
     def fit_clearance(self) -> float:
@@ -228,25 +254,20 @@ def add_consignment(
     """Add the packaging, the content, the packaging-content contact (switched by
     ``content_contact``, default on) and the packaging's self contact (layer on layer)."""
     spec, mat, h = build.spec, build.material, build.element_size
-    length, width = build.flat_size
-    pts, quads, bottom_ids, top_ids = two_layer_envelope(length, width, INITIAL_GAP, h)
-    nx = max(2, round(length / h))
-    ny = max(2, round(width / h))
-    on_border = np.zeros(len(pts), bool)
-    i, j = bottom_ids % (nx + 1), bottom_ids // (nx + 1)
-    on_border[bottom_ids[(i == 0) | (i == nx) | (j == 0) | (j == ny)]] = True
+    pm = _packaging_mesh(build)
+    pts, quads = pm.points, pm.quads
     strip_area = 0.0
     strip_quads = None
     if build.has_glued_strip:
         # one row of doubled-thickness shells outside the +x border, in the border's plane
-        col = bottom_ids[i == nx]  # ordered by j
+        col = pm.edge  # ordered by y
         new = len(pts) + np.arange(len(col))
         pts = np.vstack([pts, pts[col] + (GLUED_STRIP_WIDTH, 0.0, 0.0)])
         strip_quads = np.column_stack([col[:-1], new[:-1], new[1:], col[1:]])
         edge_local = new
-        strip_area = GLUED_STRIP_WIDTH * width
+        strip_area = GLUED_STRIP_WIDTH * build.flat_size[1]
     else:
-        edge_local = bottom_ids[i == nx]
+        edge_local = pm.edge
     t = mat.thickness
     shell = ShellMaterial(mat.youngs_modulus, mat.poisson_ratio, mat.density, t,
                           mat.damping_ratio, mat.membrane)  # fmt: skip
@@ -278,12 +299,12 @@ def add_consignment(
         contact_nodes = ids
         if spec.content_fixed_to_packaging:
             gl, gw = GLUE_STRIPE[0] * lc, GLUE_STRIPE[1]
-            p = np.abs(pts[bottom_ids, :2])
+            p = np.abs(pts[pm.bottom_layer, :2])
             # a stripe narrower than an element takes the row of nodes nearest its centre line
             # (an odd number of elements across has no node row on it)
             half = np.maximum((gl / 2, gw / 2), p.min(axis=0)) + 1e-9
             inside = (p[:, 0] <= half[0]) & (p[:, 1] <= half[1])
-            glue = ids[bottom_ids[inside & ~on_border[bottom_ids]]]
+            glue = ids[pm.bottom_layer[inside & ~np.isin(pm.bottom_layer, pm.border)]]
             if glue.size == 0:
                 raise ValueError(f"consignment {spec.id!r}: the glue stripe holds no node")
             b.add_fdr(glue, reference=body)
@@ -318,14 +339,12 @@ def add_consignment(
         b.add_face_contact(content_nodes[edges], ids, law, thickness=t / 2, schedule=sched)
     if self_contact:
         b.add_self_contact(ids, law, thickness=t)
-    top = ids[top_ids]
-    bottom = ids[bottom_ids[~on_border[bottom_ids]]]
     return Consignment(
         build=build,
         packaging=ids,
-        top=top,
-        bottom=np.setdiff1d(bottom, glue),
-        border=ids[bottom_ids[on_border[bottom_ids]]],
+        top=ids[pm.top],
+        bottom=np.setdiff1d(ids[pm.bottom], glue),
+        border=ids[pm.border],
         edge=ids[edge_local],
         content_body=body,
         content_nodes=content_nodes,
@@ -334,7 +353,54 @@ def add_consignment(
         contact_radius=t / 2,
         content_box=(lc, wc, hc),
         glue=glue,
-        top_quads=ids[quads[np.isin(quads, top_ids).any(axis=1)]],
+        top_quads=ids[quads[pm.top_quads]],
+    )
+
+
+@dataclass(frozen=True)
+class _PackagingMesh:
+    """The flat packaging's shells before the glued strip: points (n, 3) [m], quads (q, 4),
+    and node ids (into ``points``) by role."""
+
+    points: np.ndarray
+    quads: np.ndarray
+    bottom_layer: np.ndarray
+    """Every node of the bottom layer (the glue stripe is chosen among them)."""
+    bottom: np.ndarray
+    """Bottom-layer nodes off the border and folds (pulled down by the opening)."""
+    top: np.ndarray
+    """Top-layer nodes off the border and folds (pulled up by the opening)."""
+    border: np.ndarray
+    """Nodes where the layers are joined: the envelope's border, the gusseted bag's seams."""
+    edge: np.ndarray
+    """The +x border's nodes, ordered by y."""
+    top_quads: np.ndarray
+    """Rows of ``quads`` that belong to the top layer."""
+
+
+def _packaging_mesh(build: ConsignmentBuild) -> _PackagingMesh:
+    """The flat packaging of ``build`` by its construction (``spec.construction``)."""
+    length, width = build.flat_size
+    h = build.element_size
+    if build.spec.construction == "gusseted":
+        pts, quads, roles = gusseted_envelope(length, width, build.gusset_depth, GUSSET_SPACING, h)
+        return _PackagingMesh(pts, quads, roles["bottom_layer"], roles["bottom"],
+                              roles["top"], roles["seam"], roles["edge"],
+                              roles["top_quads"])  # fmt: skip
+    pts, quads, bottom_ids, top_ids = two_layer_envelope(length, width, INITIAL_GAP, h)
+    nx = max(2, round(length / h))
+    ny = max(2, round(width / h))
+    i, j = bottom_ids % (nx + 1), bottom_ids // (nx + 1)
+    on_border = (i == 0) | (i == nx) | (j == 0) | (j == ny)
+    return _PackagingMesh(
+        points=pts,
+        quads=quads,
+        bottom_layer=bottom_ids,
+        bottom=bottom_ids[~on_border],
+        top=top_ids,
+        border=bottom_ids[on_border],
+        edge=bottom_ids[i == nx],
+        top_quads=np.nonzero(np.isin(quads, top_ids).any(axis=1))[0],
     )
 
 

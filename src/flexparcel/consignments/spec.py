@@ -21,6 +21,7 @@ __all__ = [
     "CONSIGNMENT_FORMAT_VERSION",
     "PACKAGING_MATERIALS",
     "CONTENT_KINDS",
+    "PACKAGING_CONSTRUCTIONS",
     "MAX_EDGE_MM",
     "MAX_MASS_G",
     "ConsignmentSpec",
@@ -32,6 +33,7 @@ __all__ = [
 CONSIGNMENT_FORMAT_VERSION = 1
 PACKAGING_MATERIALS = ("kraft_paper_bubble_wrap", "polybag", "kraft_paper", "bubble_wrap")
 CONTENT_KINDS = ("rigid", "flexible")
+PACKAGING_CONSTRUCTIONS = ("envelope", "gusseted")
 # Upper bounds that catch unit mistakes (cm or m written as mm, kg as g) for small consignments:
 # 2 m edge, 31.5 kg (the usual parcel mass limit).
 MAX_EDGE_MM = 2000.0
@@ -59,6 +61,10 @@ class ConsignmentSpec:
     mass_g : total mass, packaging + content [g], in (0, 31500].
     content_fixed_to_packaging : content glued to the bottom layer (KP in the paper).
     based_on_cluster : survey cluster number it represents (>= 1), or ``None``.
+    construction : how the flat packaging is made (:data:`PACKAGING_CONSTRUCTIONS`):
+        ``"envelope"`` (two layers joined at their border; default) or ``"gusseted"`` (a bag
+        with a W-gusset along each long side and sealed ends, whose side walls give the
+        content's height: KP in the paper; see :mod:`flexparcel.consignments.build`).
     """
 
     id: str
@@ -73,6 +79,7 @@ class ConsignmentSpec:
     mass_g: float
     content_fixed_to_packaging: bool = False
     based_on_cluster: int | None = None
+    construction: str = "envelope"
 
     def __post_init__(self) -> None:
         def bad(key: str, value: object, allowed: str) -> ConsignmentFileError:
@@ -87,6 +94,8 @@ class ConsignmentSpec:
             )
         if self.packaging_material not in PACKAGING_MATERIALS:
             raise bad("packaging_material", self.packaging_material, "|".join(PACKAGING_MATERIALS))
+        if self.construction not in PACKAGING_CONSTRUCTIONS:
+            raise bad("construction", self.construction, "|".join(PACKAGING_CONSTRUCTIONS))
         if self.content_kind not in CONTENT_KINDS:
             raise bad("content_kind", self.content_kind, "|".join(CONTENT_KINDS))
         for key in ("length_mm", "width_mm", "height_mm"):
@@ -136,6 +145,7 @@ def write_consignment_toml(spec: ConsignmentSpec, path: str | Path) -> Path:
         content_height_mm = 20.0
         mass_g = 140.0                                   # total: packaging + content
         content_fixed_to_packaging = false
+        construction = "gusseted"                        # optional: | envelope (default)
     """
     lines = [
         "# flexparcel consignment (lengths in mm, mass in g); see docs/selection.md",
@@ -156,6 +166,8 @@ def write_consignment_toml(spec: ConsignmentSpec, path: str | Path) -> Path:
         f"mass_g = {float(spec.mass_g)!r}",
         f"content_fixed_to_packaging = {'true' if spec.content_fixed_to_packaging else 'false'}",
     ]
+    if spec.construction != "envelope":  # files of envelopes read as they always did
+        lines.append(f'construction = "{spec.construction}"')
     from flexparcel.io.atomic import write_atomic
 
     # atomic: a reader never meets half a consignment file
@@ -185,7 +197,7 @@ def read_consignment_toml(path: str | Path) -> ConsignmentSpec:
         raise ConsignmentFileError(
             f"{path}: unknown key(s) {', '.join(unknown)} (allowed: {', '.join(known)})"
         )
-    optional = {"content_fixed_to_packaging", "based_on_cluster"}
+    optional = {"content_fixed_to_packaging", "based_on_cluster", "construction"}
     absent = [k for k in known if k not in doc and k not in optional]
     if absent:
         raise ConsignmentFileError(f"{path}: missing key(s) {', '.join(absent)}")
@@ -196,7 +208,9 @@ def read_consignment_toml(path: str | Path) -> ConsignmentSpec:
                 doc[key] = float(value)
             else:
                 raise ConsignmentFileError(f"{path}: {key} = {value!r} must be a number")
-        elif key in ("id", "packaging_material", "content_kind") and not isinstance(value, str):
+        elif key in ("id", "packaging_material", "content_kind", "construction") and not isinstance(
+            value, str
+        ):
             raise ConsignmentFileError(f"{path}: {key} = {value!r} must be a string")
     try:
         return ConsignmentSpec(**doc)

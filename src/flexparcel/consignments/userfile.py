@@ -15,6 +15,7 @@ The file is the consignment TOML of :func:`flexparcel.consignments.spec.read_con
     content_height_mm = 10
     mass_g = 40                           # total: packaging + content
     content_fixed_to_packaging = false    # optional
+    construction = "envelope"             # optional: | gusseted (side walls from gussets)
     element_size_mm = 20                  # optional: shell edge length (default: 10 mm)
 
     [material]                            # optional: overrides of the packaging material preset
@@ -77,7 +78,7 @@ MEMBRANE_KEY = "membrane"
 """The ``[material]`` key of the membrane law, a string (``MEMBRANE_LAWS``)."""
 
 _SPEC_KEYS = {f.name for f in fields(ConsignmentSpec)}
-_SPEC_OPTIONAL = {"content_fixed_to_packaging", "based_on_cluster"}
+_SPEC_OPTIONAL = {"content_fixed_to_packaging", "based_on_cluster", "construction"}
 _EXTRA_KEYS = {"element_size_mm", "material"}
 
 
@@ -117,7 +118,9 @@ def load_consignment_file(path: str | Path) -> ConsignmentBuild:
             if not _is_number(value):
                 raise fail(f"{key} = {value!r} must be a number")
             doc[key] = float(value)  # TOML integers are fine for lengths and masses
-        elif key in ("id", "packaging_material", "content_kind") and not isinstance(value, str):
+        elif key in ("id", "packaging_material", "content_kind", "construction") and not isinstance(
+            value, str
+        ):
             raise fail(f"{key} = {value!r} must be a string")
     try:
         spec = ConsignmentSpec(**doc)  # range checks, e.g. the content must fit
