@@ -30,7 +30,7 @@ def test_the_folded_bag_is_closed_and_consistently_oriented(h):
     n_strip_cells = (np.abs(np.unique(pts[:, 1])) >= W / 2 - G - 1e-12).sum() - 2
     assert (count == 4).sum() == 2 * n_strip_cells  # both ends
     assert len(np.unique(quads)) == len(pts)  # every node in an element
-    # the outward normals: bottom panel down, top panel up (the two panels' quads)
+    # the top panel's outward normals point up (the rest follow by the orientation check)
     top = quads[roles["top_quads"]]
     n = np.cross(pts[top[:, 1]] - pts[top[:, 0]], pts[top[:, 3]] - pts[top[:, 0]])
     assert np.all(n[:, 2] > 0)

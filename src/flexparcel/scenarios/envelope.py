@@ -88,9 +88,8 @@ def gusseted_envelope(
     the plies), upper plies -z, top panel +z. Centred on the origin, x along the length.
 
     Roles: ``bottom`` and ``top`` (the panels' nodes off the seams and folds), ``bottom_layer``
-    (every node of the bottom panel), ``plies``, ``folds`` (the side edges' and inner folds'
-    nodes), ``seam`` (both ends), ``edge`` (the +x seam, ordered by y), ``top_quads`` (rows
-    of the top panel's quads in ``quads``).
+    (every node of the bottom panel), ``seam`` (both ends), ``edge`` (the +x seam, ordered
+    by y), ``top_quads`` (rows of the top panel's quads in ``quads``).
     """
     for name, v in (("length", length), ("width", width), ("gusset_depth", gusset_depth),
                     ("spacing", spacing), ("element_size", element_size)):  # fmt: skip
@@ -153,13 +152,10 @@ def gusseted_envelope(
     ]
     quads = np.vstack(blocks).astype(np.int64)
     n_before_top = sum(len(q) for q in blocks[:3])
-    in_gusset = (j <= j_left) | (j >= j_right)
     roles = {
         "bottom": bottom[~end & ~side],
         "top": top[~end & ~side],
         "bottom_layer": np.unique(bottom),
-        "plies": np.unique(np.r_[lower[~end & in_gusset & ~side], upper[~end & in_gusset & ~side]]),
-        "folds": np.unique(np.r_[bottom[~end & side], top[~end & side], fold_in[inner]]),
         "seam": seam[end],
         "edge": seam[nx, :],
         "top_quads": np.arange(n_before_top, len(quads)),
