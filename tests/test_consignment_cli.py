@@ -177,6 +177,9 @@ def test_assemble_writes_snapshot_json_paraview_and_picture(assembled):
     # settled: the assembly's own rest criterion, and the packaging wraps the 10 mm content
     assert info["info"]["kinetic_energy_J"] < info["info"]["settings"]["kinetic_tolerance"]
     assert info["extent_mm"][2] > 10.0
+    # the rigid box's surface checked against the film (shape.content_surface_outside)
+    surface = info["info"]["shape"]["content_surface"]
+    assert surface["points"] > 0 and 0.0 <= surface["depth_mm"] <= surface["bound_mm"]
     snap = load_snapshot(assembled / "snapshot.npz")
     assert snap.build == load_consignment_file(EXAMPLE)
 

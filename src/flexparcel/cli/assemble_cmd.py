@@ -45,11 +45,18 @@ def shape_line(shape: dict) -> str:
     outer = " x ".join(f"{v:.0f}" for v in shape["outer_mm"])
     table2 = " x ".join(f"{v:g}" for v in shape["table2_mm"])
     gap = shape["gap_mm"]
-    return (
+    line = (
         f"shape: {outer} mm (Table 2: {table2} mm), film on the content within "
         f"{gap['max']:.2f} mm (bound {shape['gap_bound_mm']:.1f} mm), "
         f"{shape['content_outside']} content node(s) outside"
     )
+    surface = shape.get("content_surface")  # absent in snapshots of older assemblies
+    if surface:
+        line += (
+            f", the box's surface outside by at most {surface['depth_mm']:.1f} mm "
+            f"(chord bound {surface['bound_mm']:.1f} mm)"
+        )
+    return line
 
 
 def run(args: argparse.Namespace) -> int:

@@ -18,7 +18,12 @@ every assembly:
 - content nodes outside the closed film (:func:`content_outside_packaging`), each by how far
   (its distance to the nearest film triangle beyond the film's half thickness): none may lie
   farther out than :data:`OUTSIDE_BOUND` (a node between two film nodes can bulge through the
-  film's flat facets by a fraction of a mm without the content being out).
+  film's flat facets by a fraction of a mm without the content being out);
+- for a rigid content, whose one node is its centre, its surface too
+  (:func:`content_surface_outside`): points over the whole rounded box, each outside the
+  film by how far; none may lie farther out than the chord a film facet cuts over the box's
+  rounded edge (:func:`surface_chord_bound`), which the mesh cannot resolve, so a box that
+  slid or poked out of its packaging fails while a 25 mm film over a 3 mm rounding passes.
 
 :class:`ShapeCheck` holds the figures; its :meth:`~ShapeCheck.failures` are what makes the
 assembly fail.
@@ -40,7 +45,9 @@ __all__ = [
     "ShapeCheck",
     "check_shape",
     "content_outside_packaging",
+    "content_surface_outside",
     "film_gaps",
+    "surface_chord_bound",
 ]
 
 GAP_BOUND_ELEMENTS = 0.5
@@ -78,23 +85,30 @@ def _film_triangles(model, c, positions: np.ndarray) -> np.ndarray:
     return positions[surface_triangles(model.cells, film)]
 
 
-def content_outside_packaging(model, c, positions: np.ndarray) -> np.ndarray:
-    """Ids of ``c``'s content nodes that lie outside its closed packaging at ``positions``
-    (node_count, 3) [m]: a point is inside a closed surface when a ray from it crosses the
-    surface an odd number of times (Jordan curve theorem). A node counts as outside only when
-    the rays up and down both say so, which keeps a ray through a film edge (counted twice)
-    from misjudging it. Meaningful once the packaging is closed round its content (after the
-    assembly), not for the flat packaging before its opening. For a rigid content the node is
-    its centre of mass."""
-    tri = _film_triangles(model, c, positions)
+def _outside_closed_film(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Which points (n, 3) [m] lie outside the closed surface ``tri`` (t, 3, 3) [m], (n,)
+    bool: a ray from a point inside crosses it an odd number of times (Jordan curve
+    theorem); outside only when the rays up and down both say so, which keeps a ray through
+    a film edge (counted twice) from misjudging it."""
     # a nudge off the mesh's regular lines, so rays do not pass exactly through film nodes
-    p = positions[c.content_nodes] + np.array([1.1e-7, 1.3e-7, 0.0])
+    p = points + np.array([1.1e-7, 1.3e-7, 0.0])
     out = np.zeros(p.shape[0], bool)
     for s in range(0, p.shape[0], _CHUNK):
         hit, z = _ray_hits(p[s : s + _CHUNK], tri)
         up = (hit & (z > p[s : s + _CHUNK, None, 2])).sum(axis=1)
         down = (hit & (z < p[s : s + _CHUNK, None, 2])).sum(axis=1)
         out[s : s + _CHUNK] = (up % 2 == 0) & (down % 2 == 0)
+    return out
+
+
+def content_outside_packaging(model, c, positions: np.ndarray) -> np.ndarray:
+    """Ids of ``c``'s content nodes that lie outside its closed packaging at ``positions``
+    (node_count, 3) [m], by ray parity (:func:`_outside_closed_film`). Meaningful once the
+    packaging is closed round its content (after the assembly), not for the flat packaging
+    before its opening. For a rigid content the node is its centre of mass (its surface:
+    :func:`content_surface_outside`)."""
+    tri = _film_triangles(model, c, positions)
+    out = _outside_closed_film(positions[c.content_nodes], tri)
     return c.content_nodes[out]
 
 
@@ -157,6 +171,69 @@ def film_gaps(model, c, positions: np.ndarray, rotations: np.ndarray) -> np.ndar
     return np.concatenate(out)
 
 
+def surface_chord_bound(element_size: float, edge_radius: float) -> float:
+    """How far [m] a rounded box edge can reach beyond a film that lies on both its faces.
+
+    A straight facet edge of length ``l`` with its ends on the two faces of a 90-degree edge,
+    at ``a`` and ``b`` from it (a^2 + b^2 = l^2), leaves the edge's apex beyond it by
+    a b / l; rounding the edge with radius ``r`` takes r (a + b) / l - r off. Both are
+    largest at a = b = l / sqrt(2): l / 2 - (sqrt(2) - 1) r. The longest facet edge of a
+    quad film is its diagonal, l = sqrt(2) h. (At a box corner, a triangle over three edges
+    cuts at most l / sqrt(6), less.) A point deeper than this is not under a chord: the
+    content is out of its packaging there."""
+    chord = np.sqrt(2.0) * element_size
+    return max(0.0, float(chord / 2.0 - (np.sqrt(2.0) - 1.0) * edge_radius))
+
+
+def _box_surface_points(c, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """Points (n, 3) [m] over a rigid content's whole rounded surface, at most half an
+    element apart: a grid on each face of the sharp box (edges included) projected onto the
+    rounded box (the core box grown by the edge radius, so a sharp edge's grid line lands
+    on the rounding's apex, where a chord cuts deepest)."""
+    from flexparcel.consignments.build import CONTENT_EDGE_RADIUS
+
+    half = np.asarray(c.content_box) / 2
+    n = [max(2, int(np.ceil(2 * v / (0.5 * c.build.element_size))) + 1) for v in half]
+    grid = [np.linspace(-v, v, k) for v, k in zip(half, n, strict=True)]
+    pts = []
+    for ax in range(3):
+        o = [a for a in range(3) if a != ax]
+        u, v = np.meshgrid(grid[o[0]], grid[o[1]], indexing="ij")
+        for sign in (-1.0, 1.0):
+            p = np.empty((u.size, 3))
+            p[:, o[0]], p[:, o[1]], p[:, ax] = u.ravel(), v.ravel(), sign * half[ax]
+            pts.append(p)
+    sharp = np.vstack(pts)
+    core = np.clip(sharp, -(half - CONTENT_EDGE_RADIUS), half - CONTENT_EDGE_RADIUS)
+    d = sharp - core
+    local = core + CONTENT_EDGE_RADIUS * d / np.linalg.norm(d, axis=1, keepdims=True)
+    rot, centre = rotations[c.content_body], positions[c.content_body]
+    return centre + local @ rot.T
+
+
+def content_surface_outside(model, c, positions: np.ndarray, rotations: np.ndarray) -> dict:
+    """A rigid content's surface against its closed film at ``positions`` (node_count, 3)
+    [m] and ``rotations`` (node_count, 3, 3): ``points`` sampled over the rounded box
+    (:func:`_box_surface_points`), how many lie ``outside`` the film, the ``depth_mm`` of the
+    farthest beyond the film's outer face (its distance to the nearest film triangle minus
+    the film's half thickness; 0 for none) and the ``bound_mm`` it may reach
+    (:func:`surface_chord_bound`). ``None`` for a flexible content, whose nodes are its
+    surface and are checked as nodes."""
+    if c.content_body is None:
+        return None
+    from flexparcel.consignments.build import CONTENT_EDGE_RADIUS
+
+    pts = _box_surface_points(c, positions, rotations)
+    tri = _film_triangles(model, c, positions)
+    out = _outside_closed_film(pts, tri)
+    depth = 0.0
+    if out.any():
+        depth = max(0.0, float((_nearest_distance(pts[out], tri) - c.contact_radius).max()))
+    bound = surface_chord_bound(c.build.element_size, CONTENT_EDGE_RADIUS)
+    return {"points": int(pts.shape[0]), "outside": int(out.sum()), "depth_mm": depth * 1e3,
+            "bound_mm": bound * 1e3}  # fmt: skip
+
+
 @dataclass(frozen=True)
 class ShapeCheck:
     """An assembled consignment's shape against its bounds (lengths in mm)."""
@@ -178,6 +255,9 @@ class ShapeCheck:
     """Content nodes outside the closed film."""
     outside_depth_mm: float
     """How far the farthest of them lies beyond the film's surface (0 for none)."""
+    content_surface: dict | None = None
+    """A rigid content's surface outside the film (:func:`content_surface_outside`: points,
+    outside, depth_mm, bound_mm); ``None`` for a flexible content."""
 
     def failures(self) -> list[str]:
         """What is out of bounds, each in words with its figure and bound (empty: fine)."""
@@ -196,6 +276,11 @@ class ShapeCheck:
         if self.outside_depth_mm > OUTSIDE_BOUND * 1e3:
             out.append(f"{self.content_outside} content node(s) outside the film, up to "
                        f"{self.outside_depth_mm:.2f} mm > {OUTSIDE_BOUND * 1e3:g} mm")  # fmt: skip
+        cs = self.content_surface
+        if cs is not None and cs["depth_mm"] > cs["bound_mm"]:
+            out.append(f"the content's surface outside the film: {cs['outside']} of "
+                       f"{cs['points']} points, up to {cs['depth_mm']:.1f} mm > "
+                       f"{cs['bound_mm']:.1f} mm (a facet's chord over the box edge)")  # fmt: skip
         return out
 
     def table2_deviation_mm(self) -> tuple[float, float, float]:
@@ -209,7 +294,10 @@ class ShapeCheck:
             "bound_mm": list(self.bound_mm), "element_size_mm": self.element_size_mm,
             "gap_mm": dict(self.gap_mm), "gap_bound_mm": self.gap_bound_mm,
             "content_outside": self.content_outside,
-            "outside_depth_mm": self.outside_depth_mm, "failures": self.failures(),
+            "outside_depth_mm": self.outside_depth_mm,
+            "content_surface": None if self.content_surface is None
+            else dict(self.content_surface),
+            "failures": self.failures(),
         }  # fmt: skip
 
 
@@ -240,5 +328,6 @@ def check_shape(model, c, positions: np.ndarray, rotations: np.ndarray) -> Shape
     if outside.size:
         d = _nearest_distance(positions[outside], _film_triangles(model, c, positions))
         depth = float(max(0.0, (d - c.contact_radius).max()) * 1e3)
+    surface = content_surface_outside(model, c, positions, rotations)
     return ShapeCheck(outer, table2, bound, h_mm, gap, GAP_BOUND_ELEMENTS * h_mm,
-                      int(outside.size), depth)  # fmt: skip
+                      int(outside.size), depth, surface)  # fmt: skip
