@@ -7,6 +7,7 @@ from scipy.signal import find_peaks
 import flexparcel as fp
 from conftest import strip_model
 from flexparcel.scenarios.sheet_swing import SheetSwing, sheet_swing_model
+from flexparcel.simulate import ModelStepper
 
 # Strip of Sze case 3.1 with rho chosen so that f1 = 10.00 Hz (omega1 = 62.83 rad/s).
 L, B, H, RHO = 10.0, 1.0, 0.1, 3.1314e-4
@@ -105,6 +106,28 @@ def test_adaptive_run_matches_fine_fixed_step():
     ref = _swing_tip(1.25e-4)
     assert np.linalg.norm(r.positions[-1, tip].mean(axis=0) - ref) < 1e-3
     assert r.stats["rejected_steps"] <= r.stats["steps"]
+
+
+def test_a_stepper_goes_on_across_simulate_calls_exactly():
+    # simulate() called chunk by chunk with one ModelStepper is the single call with frames
+    # at the chunk ends, bit for bit: begin() keeps the scheme's accelerations of the state
+    # it stopped at (recomputing consistent ones reset the generalised-alpha filter, and the
+    # assembly's 5 ms opening chunks took 16x the steps)
+    model, _ = _paper_sheet(6)
+    one = fp.simulate(model, 0.12, dt_out=0.03)
+    stepper = ModelStepper(model, None)
+    s = None
+    for k in range(1, 5):
+        r = fp.simulate(model, 0.03 * k, dt_out=0.03, state=s, stepper=stepper)
+        s = r.final_state
+    assert r.stats["steps"] == one.stats["steps"]
+    for name in ("positions", "rotations", "velocities", "accelerations"):
+        assert np.array_equal(getattr(s, name), getattr(one.final_state, name)), name
+    # any other state (here the start again) gets consistent accelerations, M a = f - f_int
+    start = stepper.begin(model.initial_state())
+    fresh = ModelStepper(model, None).begin(model.initial_state())
+    assert np.array_equal(start.accelerations, fresh.accelerations)
+    assert not np.array_equal(start.accelerations, s.accelerations)
 
 
 def test_rejected_steps_counted_by_cause():

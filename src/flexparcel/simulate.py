@@ -233,6 +233,7 @@ class ModelStepper(Stepper):
 
     def __init__(self, model: Model, options: IntegratorOptions | None = None) -> None:
         self.integrator = GeneralizedAlpha(model, options)
+        self._last: State | None = None  # the state the last advance() returned
         self._breaks = sorted(
             {float(b) for sch in model.schedules for b in sch.breakpoints()}
             | {float(b) for b in model.gravity_schedule.breakpoints()}
@@ -242,8 +243,28 @@ class ModelStepper(Stepper):
         return json.loads(json.dumps(asdict(self.integrator.opt)))
 
     def begin(self, state: State) -> State:
+        if self._continues(state):
+            # the state this stepper stopped at: go on with the scheme's own accelerations.
+            # Consistent ones, M a = f_ext - f_int, would reset the generalised-alpha filter:
+            # a film's unresolved membrane modes come back into a, the error estimate sees
+            # them as an acceleration jump and the steps collapse (KP's opening at 10 mm in
+            # 5 ms simulate() chunks: 132 steps for 15 ms against 8 in one call, the same
+            # clearance to 0.01 mm)
+            state.accelerations[:] = self._last.accelerations
+            return state
         self.integrator.initialize(state)
         return state
+
+    def _continues(self, state: State) -> bool:
+        """Whether ``state`` is the one the last :meth:`advance` returned."""
+        last = self._last
+        return (
+            last is not None
+            and state.time == last.time
+            and np.array_equal(state.positions, last.positions)
+            and np.array_equal(state.rotations, last.rotations)
+            and np.array_equal(state.velocities, last.velocities)
+        )
 
     def advance(self, state: State, t_out: float, progress) -> State:
         s = state
@@ -252,6 +273,7 @@ class ModelStepper(Stepper):
             s = self.integrator.step(s, nxt[0] if nxt else t_out)
             if progress is not None:
                 progress(s.time, t_out)
+        self._last = s.copy()
         return s
 
     def history(self) -> dict[str, np.ndarray]:

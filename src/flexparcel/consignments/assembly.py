@@ -349,7 +349,7 @@ def assemble(
         _scale_content(model_a, c, s, f0, xref_full)
     # one integrator through all opening chunks: a fresh one per chunk started again from
     # dt_initial and halved its way down (KP at 10 mm: 8 Newton failures at the start of
-    # every 5 ms chunk)
+    # every 5 ms chunk); ModelStepper.begin goes on from where the last chunk stopped
     opening_stepper = ModelStepper(model_a, opt)
     steps = 0
     while opening_clearance(c, s, f0) < st.margin:
@@ -393,10 +393,12 @@ def assemble(
     model_c, c = _model(build, st, True, None, st.friction)
     opt_settle = replace(opt, rho_inf=st.settle_rho_inf)
     kin = asm.kinetic_energy(model_c, s.velocities, s.rotations)
+    # one integrator through all settling chunks, as through the opening's
+    settle_stepper, steps_before = ModelStepper(model_c, opt_settle), steps
     while kin >= st.kinetic_tolerance and s.time < _settle_deadline(st, t_open, f0):
         t_end = s.time + st.settle_chunk
-        r = simulate(model_c, t_end, dt_out=t_end - s.time, options=opt_settle, state=s)
-        s, steps = r.final_state, steps + r.stats["steps"]
+        r = simulate(model_c, t_end, dt_out=t_end - s.time, state=s, stepper=settle_stepper)
+        s, steps = r.final_state, steps_before + r.stats["steps"]
         kin = asm.kinetic_energy(model_c, s.velocities, s.rotations)
         if progress:
             progress("settling", s.time)
