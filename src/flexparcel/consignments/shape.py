@@ -188,9 +188,9 @@ def surface_chord_bound(element_size: float, edge_radius: float) -> float:
 def _box_surface_points(c, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     """Points (n, 3) [m] over a rigid content's whole rounded surface, at most half an
     element apart: a grid on each face of the sharp box (edges included) projected onto the
-    rounded box (the core box grown by the edge radius, so a sharp edge's grid line lands
-    on the rounding's apex, where a chord cuts deepest)."""
-    from flexparcel.consignments.build import CONTENT_EDGE_RADIUS
+    rounded box as the block builder rounds its lattice (``build._round_block``: a sharp
+    edge's grid line lands on the rounding's apex, where a chord cuts deepest)."""
+    from flexparcel.consignments.build import CONTENT_EDGE_RADIUS, _round_block
 
     half = np.asarray(c.content_box) / 2
     n = [max(2, int(np.ceil(2 * v / (0.5 * c.build.element_size))) + 1) for v in half]
@@ -203,10 +203,7 @@ def _box_surface_points(c, positions: np.ndarray, rotations: np.ndarray) -> np.n
             p = np.empty((u.size, 3))
             p[:, o[0]], p[:, o[1]], p[:, ax] = u.ravel(), v.ravel(), sign * half[ax]
             pts.append(p)
-    sharp = np.vstack(pts)
-    core = np.clip(sharp, -(half - CONTENT_EDGE_RADIUS), half - CONTENT_EDGE_RADIUS)
-    d = sharp - core
-    local = core + CONTENT_EDGE_RADIUS * d / np.linalg.norm(d, axis=1, keepdims=True)
+    local = _round_block(np.vstack(pts), CONTENT_EDGE_RADIUS)
     rot, centre = rotations[c.content_body], positions[c.content_body]
     return centre + local @ rot.T
 
