@@ -646,6 +646,73 @@ def test_content_scale_out_of_range_is_refused():
     assert AssemblySettings(settle_rho_inf=0.0).settle_rho_inf == 0.0  # 0 is allowed
 
 
+class _Interrupt(Exception):
+    """Stands for a kill: raised from the progress callback."""
+
+
+def _interrupt_at(phase: str, count: int):
+    """A progress callback that raises :class:`_Interrupt` at its ``count``-th call in
+    ``phase``."""
+    calls = []
+
+    def progress(p: str, _t: float) -> None:
+        calls.append(p)
+        if calls.count(phase) == count:
+            raise _Interrupt(phase)
+
+    return progress
+
+
+@pytest.mark.slow  # 60-90 s (make slow): about two assemblies of the small example
+def test_an_interrupted_assembly_resumes_from_its_checkpoint_as_if_uninterrupted(small, tmp_path):
+    from flexparcel.consignments.assembly_checkpoint import AssemblyCheckpoint
+
+    # interrupted in the opening, in the closing (before its own checkpoint's first write,
+    # so it starts over from the opened state) and in the settling, then run to the end:
+    # the same snapshot as the one uninterrupted assembly (the CLI's, conftest), bit for bit
+    build = load_consignment_file(EXAMPLE)
+    ck = tmp_path / "assembly.npz"
+    stops = (("opening", 2, "opening"), ("closing", 5, "opening"), ("settling", 1, "settling"))
+    for phase, count, saved in stops:
+        with pytest.raises(_Interrupt):
+            assemble(build, checkpoint=ck, progress=_interrupt_at(phase, count))
+        assert AssemblyCheckpoint(ck, {}).path.exists()
+        assert str(np.load(ck)["position"]).count(f'"phase": "{saved}"') == 1
+    snap = assemble(build, checkpoint=ck)
+    assert not ck.exists()  # ended: nothing left to resume
+    np.testing.assert_array_equal(snap.positions, small.positions)
+    np.testing.assert_array_equal(snap.rotations, small.rotations)
+    assert snap.info["steps"] == small.info["steps"]
+    assert snap.info["end_time_s"] == small.info["end_time_s"]
+
+
+def test_an_assembly_checkpoint_of_another_assembly_is_refused(tmp_path):
+    from flexparcel.consignments.assembly_checkpoint import AssemblyCheckpoint, AssemblyPosition
+    from flexparcel.io.checkpoint import CheckpointError
+    from flexparcel.model.model import State
+
+    n = 3
+    s = State(0.25, np.ones((n, 3)), np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 6)),
+              np.zeros((n, 6)))  # fmt: skip
+    path = tmp_path / "a.npz"
+    header = {"consignment": "KP", "element_size": 0.01, "settings": {"margin": 0.002}}
+    AssemblyCheckpoint(path, header).save(AssemblyPosition("settling", s, {"alg": s.positions},
+                                                           42, 0.1, 3.5))  # fmt: skip
+    back = AssemblyCheckpoint(path, header).load()
+    assert (back.phase, back.steps, back.t_open, back.wall_s) == ("settling", 42, 0.1, 3.5)
+    assert back.state.time == 0.25
+    np.testing.assert_array_equal(back.history["alg"], s.positions)
+    other = {**header, "element_size": 0.025}
+    with pytest.raises(
+        CheckpointError, match=r"element_size = 0.01, this run has element_size = 0.025"
+    ):
+        AssemblyCheckpoint(path, other).load()
+    path.write_bytes(b"not an npz")
+    with pytest.raises(CheckpointError, match=r"assembly checkpoint .*a.npz: not a readable .npz"):
+        AssemblyCheckpoint(path, header).load()
+    assert AssemblyCheckpoint(tmp_path / "none.npz", header).load() is None
+
+
 @pytest.mark.slow  # 30-50 s each (make slow)
 def test_assembly_grows_a_shrunk_content_back_without_penetration():
     # the small example opened round a content of 0.6 x its size, which then grows back to

@@ -281,6 +281,7 @@ class ModelStepper(Stepper):
 
     def resume(self, state: State, history: dict[str, np.ndarray]) -> State:
         self.integrator.restore_history(history)
+        self._last = state.copy()  # a later begin() on it goes on, as after advance()
         return state
 
     def statistics(self) -> dict:

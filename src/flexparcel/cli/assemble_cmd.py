@@ -20,7 +20,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Assemble a consignment as in the paper (opening forces, content placed, "
         "contact on, forces released, settled to rest) and write DIR/snapshot.npz (the start "
         "of every test), DIR/assembly.json, DIR/assembled.png and ParaView files "
-        "DIR/paraview/assembled.pvd.",
+        "DIR/paraview/assembled.pvd. An interrupted assembly, run again with the same --out, "
+        "resumes from DIR/assembly-checkpoint.npz.",
     )
     p.add_argument("consignment", help=CONSIGNMENT_HELP)
     p.add_argument("--out", type=Path, required=True, help="output directory")
@@ -61,7 +62,7 @@ def shape_line(shape: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from flexparcel.cli.outdir import report_failure
-    from flexparcel.cli.snapshots import UNSETTLED_FILES, assemble_job
+    from flexparcel.cli.snapshots import ASSEMBLY_CHECKPOINT, UNSETTLED_FILES, assemble_job
     from flexparcel.consignments.assembly import AssemblyError
     from flexparcel.consignments.userfile import resolve_consignment
 
@@ -71,6 +72,9 @@ def run(args: argparse.Namespace) -> int:
         f"{build.spec.packaging_material} (flat {build.flat_size[0] * 1e3:.0f} x "
         f"{build.flat_size[1] * 1e3:.0f} mm), {build.element_size * 1e3:g} mm elements"
     )
+    checkpoint = args.out / ASSEMBLY_CHECKPOINT
+    if checkpoint.exists():
+        print(f"resuming from {checkpoint} (an interrupted assembly of the same consignment)")
     try:
         snap, files = assemble_job(build, args.out, progress=not args.no_progress)
     except AssemblyError as exc:

@@ -20,6 +20,7 @@ from flexparcel.consignments.snapshot import Snapshot, check_snapshot_matches
 from flexparcel.scenarios.base import write_json
 
 __all__ = [
+    "ASSEMBLY_CHECKPOINT",
     "UNSETTLED_FILES",
     "JobFiles",
     "check_snapshot_matches",
@@ -28,6 +29,10 @@ __all__ = [
     "shipped_or_assembled",
     "snapshot_for",
 ]
+
+ASSEMBLY_CHECKPOINT = "assembly-checkpoint.npz"
+"""The checkpoint an assembly in ``out`` saves after every chunk and resumes from
+(:mod:`flexparcel.consignments.assembly_checkpoint`); removed when the assembly ends."""
 
 UNSETTLED_FILES = ("unsettled.npz", "unsettled.png")
 """What :func:`assemble_job` leaves in its directory when the consignment does not come to
@@ -88,7 +93,8 @@ def assemble_job(
     """Assemble ``build`` and write the snapshot, ``assembly.json``, a picture and ParaView
     files of the settled state into ``out``. A consignment that does not come to rest raises
     :class:`AssemblyError` after its last state and picture are written to ``out``
-    (:data:`UNSETTLED_FILES`; for diagnosis, no test starts from it)."""
+    (:data:`UNSETTLED_FILES`; for diagnosis, no test starts from it). An interrupted
+    assembly, run again into the same ``out``, resumes from :data:`ASSEMBLY_CHECKPOINT`."""
     from flexparcel.cli.progress import PhaseProgress
     from flexparcel.consignments.assembly import AssemblyError, assemble
     from flexparcel.consignments.snapshot import save_snapshot
@@ -97,7 +103,8 @@ def assemble_job(
     out.mkdir(parents=True, exist_ok=True)
     line = PhaseProgress(f"assemble {build.spec.id}", enabled=progress)
     try:
-        snap = assemble(build, progress=line)
+        # an interrupted assembly (hours at 10 mm) resumes from its checkpoint in ``out``
+        snap = assemble(build, progress=line, checkpoint=out / ASSEMBLY_CHECKPOINT)
     except AssemblyError as exc:
         if exc.unsettled is not None:
             npz, png = UNSETTLED_FILES

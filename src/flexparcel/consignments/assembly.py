@@ -26,10 +26,12 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
 from flexparcel.builder import ModelBuilder
+from flexparcel.consignments.assembly_checkpoint import AssemblyCheckpoint, AssemblyPosition
 from flexparcel.consignments.build import (
     Consignment,
     ConsignmentBuild,
@@ -42,6 +44,7 @@ from flexparcel.contact.law import ContactLaw
 from flexparcel.elements.solid import SolidGroup
 from flexparcel.integrate import assembly as asm
 from flexparcel.integrate.dynamic import IntegratorOptions
+from flexparcel.io.checkpoint import model_fingerprint
 from flexparcel.model.model import BoxGrowth, Model, State
 from flexparcel.model.schedule import Schedule
 from flexparcel.simulate import ModelStepper, simulate
@@ -57,6 +60,9 @@ __all__ = [
 
 
 ASSEMBLY_FRICTION = ("none", "regularised", "stick")
+CLOSING_FRAMES = 20
+"""Output frames of the closing: where its run checkpoint can be written (KP at 10 mm closes
+in some 35 min of wall time)."""
 FINE_OPENING_SIZE = 0.015
 """Shells finer than this [m] open round a shrunk content (:func:`content_scale_for`)."""
 
@@ -317,122 +323,218 @@ def _settle_deadline(st: AssemblySettings, t_open: float, f0: float) -> float:
     return t_open + st.release_time + (st.growth_time if f0 < 1.0 else 0.0) + st.max_settle_time
 
 
-def assemble(
-    build: ConsignmentBuild,
-    settings: AssemblySettings | None = None,
-    *,
-    options: IntegratorOptions | None = None,
-    progress: Callable[[str, float], None] | None = None,
-) -> Snapshot:
-    """Open, fill, close and settle ``build``; returns the settled :class:`Snapshot`.
-
-    ``progress(phase, simulated_time)`` is called after every chunk.
-    """
-    st = settings or AssemblySettings()
+def _default_options(st: AssemblySettings) -> IntegratorOptions:
     # Newton relaxation: in PB's closing (25 mm) the film's many light nodes switching on
     # and off its content's faces made full Newton steps cycle; with it 49 Newton failures
     # up to t = 0.16 s instead of 290
-    opt = options or IntegratorOptions(
+    return IntegratorOptions(
         rho_inf=0.5,
         tol_displacement=st.tol_displacement,
         impact_limit="rigid",
         error_estimate="smooth",
         newton_relaxation=True,
     )
-    wall0 = time.perf_counter()
-    f0 = content_scale_for(build) if st.content_scale is None else st.content_scale
-    opening = _opening_schedule(st)
-    model_a, c = _model(build, st, False, opening, "none")
-    xref_full = [g.xref.copy() for g in _solid_groups(model_a)]
-    s = model_a.initial_state()
-    if f0 < 1.0:
-        _scale_content(model_a, c, s, f0, xref_full)
-    # one integrator through all opening chunks: a fresh one per chunk started again from
-    # dt_initial and halved its way down (KP at 10 mm: 8 Newton failures at the start of
-    # every 5 ms chunk); ModelStepper.begin goes on from where the last chunk stopped
-    opening_stepper = ModelStepper(model_a, opt)
-    steps = 0
-    while opening_clearance(c, s, f0) < st.margin:
-        if s.time >= st.max_opening_time:
-            raise AssemblyError(
-                f"{build.spec.id}: the packaging did not open enough in {st.max_opening_time} s "
-                f"(clearance {opening_clearance(c, s, f0) * 1e3:.2f} mm < margin "
-                f"{st.margin * 1e3:.2f} mm); raise AssemblySettings.opening_pressure or "
-                f"lower content_scale (now {f0:g})"
-            )
-        r = simulate(model_a, s.time + st.check_every, dt_out=st.check_every, state=s,
-                     stepper=opening_stepper)  # fmt: skip
-        s, steps = r.final_state, r.stats["steps"]  # the stepper's count runs on
-        if progress:
-            progress("opening", s.time)
-    t_open = s.time
-    t_closed = t_open + st.release_time
-    held = _held_nodes(model_a, c) if st.hold_film_centre else None  # see hold_film_centre
-    # closing: release (and growth), frictionless (see AssemblySettings.friction)
-    if f0 < 1.0:
-        # the content grows back once the forces are released, continuously (a jump would be a
-        # jump in penetration or in the elements' strain), the layers pressed onto it
-        t_end = t_closed + st.growth_time
-        t_pressed = max(t_closed + 0.5 * st.growth_time, t_end - st.release_time)
-        press = -st.closing_pressure / st.opening_pressure
-        release = Schedule((t_open, t_closed, t_pressed, t_end),
-                           (opening(t_open), press, press, 0.0))  # fmt: skip
-        model_b, c = _model(build, st, True, release, "none", held)
-        growth = Schedule((t_closed, t_end), (f0, 1.0))
-        _scale_content(model_b, c, None, growth, xref_full)
-    else:
-        t_end = t_closed
-        release = Schedule((t_open, t_closed), (opening(t_open), 0.0))
-        model_b, c = _model(build, st, True, release, "none", held)
-    # one chunk (the release and the growth are one schedule), reported as it goes
-    closing_progress = None if progress is None else (lambda t, _: progress("closing", t))
-    r = simulate(model_b, t_end, dt_out=t_end - s.time, options=opt, state=s,
-                 progress=closing_progress)  # fmt: skip
-    s, steps = r.final_state, steps + r.stats["steps"]
-    # settling: the content at full size, forces off, the settling friction
-    model_c, c = _model(build, st, True, None, st.friction)
-    opt_settle = replace(opt, rho_inf=st.settle_rho_inf)
-    kin = asm.kinetic_energy(model_c, s.velocities, s.rotations)
-    # one integrator through all settling chunks, as through the opening's
-    settle_stepper, steps_before = ModelStepper(model_c, opt_settle), steps
-    while kin >= st.kinetic_tolerance and s.time < _settle_deadline(st, t_open, f0):
-        t_end = s.time + st.settle_chunk
-        r = simulate(model_c, t_end, dt_out=t_end - s.time, state=s, stepper=settle_stepper)
-        s, steps = r.final_state, steps_before + r.stats["steps"]
+
+
+class _Assembly:
+    """One run of :func:`assemble`: its three phases, the step count and wall time, and the
+    checkpoint (None: none) that each chunk's end is saved to and a resumed run starts from."""
+
+    def __init__(self, build: ConsignmentBuild, st: AssemblySettings, opt: IntegratorOptions,
+                 progress: Callable[[str, float], None] | None,
+                 checkpoint: str | Path | None) -> None:  # fmt: skip
+        self.build, self.st, self.opt, self.progress = build, st, opt, progress
+        self.wall0, self.steps = time.perf_counter(), 0
+        self.f0 = content_scale_for(build) if st.content_scale is None else st.content_scale
+        self.opening = _opening_schedule(st)
+        self.model_a, self.c = _model(build, st, False, self.opening, "none")
+        self.xref_full = [g.xref.copy() for g in _solid_groups(self.model_a)]
+        self.t_open: float | None = None
+        self.ck = None
+        self.saved: AssemblyPosition | None = None
+        if checkpoint is not None:
+            header = {
+                "consignment": build.spec.id,
+                "element_size": float(build.element_size),
+                "settings": asdict(st),
+                "options": asdict(opt),
+                "model": model_fingerprint(self.model_a),
+            }
+            self.ck = AssemblyCheckpoint(checkpoint, header)
+            self.saved = self.ck.load()
+        self.wall_before = 0.0 if self.saved is None else self.saved.wall_s
+
+    def wall(self) -> float:
+        """Wall time [s] of the assembly so far, over all its runs."""
+        return self.wall_before + time.perf_counter() - self.wall0
+
+    def save(self, phase: str, s: State, history: dict[str, np.ndarray]) -> None:
+        if self.ck is not None:
+            self.ck.save(AssemblyPosition(phase, s, history, self.steps, self.t_open, self.wall()))
+
+    def resumed(self, phase: str, stepper: ModelStepper | None = None) -> State | None:
+        """The saved state if the checkpoint stands in ``phase`` (its stepper, if given, goes
+        on from the saved history), else None."""
+        if self.saved is None or self.saved.phase != phase:
+            return None
+        saved, self.saved = self.saved, None
+        self.steps, self.t_open = saved.steps, saved.t_open
+        if stepper is not None:
+            stepper.resume(saved.state, saved.history)
+        return saved.state
+
+    def open(self) -> State:
+        """Opening forces until the content clears the layers by ``margin``."""
+        st, c, f0 = self.st, self.c, self.f0
+        s = self.model_a.initial_state()
+        if f0 < 1.0:  # also when resumed: the model's content is scaled, too
+            _scale_content(self.model_a, c, s, f0, self.xref_full)
+        # one integrator through all opening chunks: a fresh one per chunk started again
+        # from dt_initial and halved its way down (KP at 10 mm: 8 Newton failures at the
+        # start of every 5 ms chunk); ModelStepper.begin goes on from where the last stopped
+        stepper = ModelStepper(self.model_a, self.opt)
+        if self.saved is not None and self.saved.phase != "opening":
+            return s  # the opening is behind the checkpoint
+        saved = self.resumed("opening", stepper)
+        s = s if saved is None else saved
+        while opening_clearance(c, s, f0) < st.margin:
+            if s.time >= st.max_opening_time:
+                raise AssemblyError(
+                    f"{self.build.spec.id}: the packaging did not open enough in "
+                    f"{st.max_opening_time} s (clearance {opening_clearance(c, s, f0) * 1e3:.2f}"
+                    f" mm < margin {st.margin * 1e3:.2f} mm); raise "
+                    f"AssemblySettings.opening_pressure or lower content_scale (now {f0:g})"
+                )
+            r = simulate(self.model_a, s.time + st.check_every, dt_out=st.check_every,
+                         state=s, stepper=stepper)  # fmt: skip
+            s, self.steps = r.final_state, r.stats["steps"]  # the stepper's count runs on
+            self.save("opening", s, stepper.history())
+            if self.progress:
+                self.progress("opening", s.time)
+        self.t_open = s.time
+        return s
+
+    def close(self, s: State) -> State:
+        """Contact on (frictionless), forces released, a shrunk content grown back."""
+        st, f0 = self.st, self.f0
+        saved = self.resumed("closed")
+        if saved is not None:
+            return saved
+        if self.saved is not None:  # in the settling: settle() takes its state
+            return s
+        t_open = self.t_open
+        t_closed = t_open + st.release_time
+        held = _held_nodes(self.model_a, self.c) if st.hold_film_centre else None
+        if f0 < 1.0:
+            # the content grows back once the forces are released, continuously (a jump
+            # would be a jump in penetration or in the elements' strain), the layers pressed
+            t_end = t_closed + st.growth_time
+            t_pressed = max(t_closed + 0.5 * st.growth_time, t_end - st.release_time)
+            press = -st.closing_pressure / st.opening_pressure
+            release = Schedule((t_open, t_closed, t_pressed, t_end),
+                               (self.opening(t_open), press, press, 0.0))  # fmt: skip
+            model_b, self.c = _model(self.build, st, True, release, "none", held)
+            growth = Schedule((t_closed, t_end), (f0, 1.0))
+            _scale_content(model_b, self.c, None, growth, self.xref_full)
+        else:
+            t_end = t_closed
+            release = Schedule((t_open, t_closed), (self.opening(t_open), 0.0))
+            model_b, self.c = _model(self.build, st, True, release, "none", held)
+        # one simulate() call (the release and the growth are one schedule), reported as it
+        # goes; it resumes from its own run checkpoint, written at one of its
+        # CLOSING_FRAMES output frames once a minute of wall time has passed since the last
+        prog = None if self.progress is None else (lambda t, _: self.progress("closing", t))
+        ck = None if self.ck is None else self.ck.closing_path()
+        r = simulate(model_b, t_end, dt_out=(t_end - s.time) / CLOSING_FRAMES, options=self.opt,
+                     state=s, progress=prog, checkpoint=ck)  # fmt: skip
+        s, self.steps = r.final_state, self.steps + r.stats["steps"]
+        self.save("closed", s, {})
+        return s
+
+    def settle(self, s: State) -> tuple[Model, State, float]:
+        """Friction on, forces off, chunks of ``settle_chunk`` until at rest or the deadline;
+        returns the model, the state and its kinetic energy [J]."""
+        st = self.st
+        model_c, self.c = _model(self.build, st, True, None, st.friction)
+        # one integrator through all settling chunks, as through the opening's
+        stepper = ModelStepper(model_c, replace(self.opt, rho_inf=st.settle_rho_inf))
+        steps_before = self.steps
+        saved = self.resumed("settling", stepper)
+        if saved is not None:  # the stepper's count runs on from the saved history
+            s, steps_before = saved, self.steps - stepper.statistics()["steps"]
         kin = asm.kinetic_energy(model_c, s.velocities, s.rotations)
-        if progress:
-            progress("settling", s.time)
-    n = model_c.node_count
-    info = {
-        "settings": asdict(st),
-        # plain Python numbers: the info goes to JSON and must read back equal
-        "opening_time_s": float(t_open),
-        "opening_pressure_Pa": float(st.opening_pressure * opening(t_open)),
-        "content_scale": float(f0),
-        "end_time_s": float(s.time),
-        "kinetic_energy_J": float(kin),
-        "steps": int(steps),
-        "wall_s": time.perf_counter() - wall0,
-        "packaging_mass_kg": float(c.packaging_mass),
-        "content_mass_kg": float(c.content_mass),
-        "at_rest": bool(kin < st.kinetic_tolerance),
-    }
-    shape = check_shape(model_c, c, s.positions, s.rotations)
-    # content nodes the closed packaging does not hold (see content_outside_packaging)
-    info["content_nodes_outside"] = shape.content_outside
-    info["shape"] = shape.to_dict()
-    info["wall_s"] = time.perf_counter() - wall0
-    snap = Snapshot(build, model_c.positions0[:n].copy(), s.positions.copy(),
-                    s.rotations.copy(), info)  # fmt: skip
-    if not info["at_rest"]:
-        raise AssemblyError(
-            f"{build.spec.id}: not at rest after {st.max_settle_time} s of settling (kinetic "
-            f"energy {kin:.3g} J >= {st.kinetic_tolerance:g} J)",
-            unsettled=snap,
-        )
-    if shape.failures():
-        raise AssemblyError(
-            f"{build.spec.id}: at rest in a wrong shape: " + "; ".join(shape.failures()),
-            unsettled=snap,
-        )
-    return snap
+        while kin >= st.kinetic_tolerance and s.time < _settle_deadline(st, self.t_open, self.f0):
+            t_end = s.time + st.settle_chunk
+            r = simulate(model_c, t_end, dt_out=t_end - s.time, state=s, stepper=stepper)
+            s, self.steps = r.final_state, steps_before + r.stats["steps"]
+            kin = asm.kinetic_energy(model_c, s.velocities, s.rotations)
+            self.save("settling", s, stepper.history())
+            if self.progress:
+                self.progress("settling", s.time)
+        return model_c, s, kin
+
+    def snapshot(self, model_c: Model, s: State, kin: float) -> Snapshot:
+        """The settled snapshot, its shape checked; raises :class:`AssemblyError` (with the
+        state) if it is not at rest or in a wrong shape."""
+        st, c, build = self.st, self.c, self.build
+        info = {
+            "settings": asdict(st),
+            # plain Python numbers: the info goes to JSON and must read back equal
+            "opening_time_s": float(self.t_open),
+            "opening_pressure_Pa": float(st.opening_pressure * self.opening(self.t_open)),
+            "content_scale": float(self.f0),
+            "end_time_s": float(s.time),
+            "kinetic_energy_J": float(kin),
+            "steps": int(self.steps),
+            "wall_s": self.wall(),
+            "packaging_mass_kg": float(c.packaging_mass),
+            "content_mass_kg": float(c.content_mass),
+            "at_rest": bool(kin < st.kinetic_tolerance),
+        }
+        shape = check_shape(model_c, c, s.positions, s.rotations)
+        # content nodes the closed packaging does not hold (see content_outside_packaging)
+        info["content_nodes_outside"] = shape.content_outside
+        info["shape"] = shape.to_dict()
+        info["wall_s"] = self.wall()
+        n = model_c.node_count
+        snap = Snapshot(build, model_c.positions0[:n].copy(), s.positions.copy(),
+                        s.rotations.copy(), info)  # fmt: skip
+        if not info["at_rest"]:
+            raise AssemblyError(
+                f"{build.spec.id}: not at rest after {st.max_settle_time} s of settling "
+                f"(kinetic energy {kin:.3g} J >= {st.kinetic_tolerance:g} J)",
+                unsettled=snap,
+            )
+        if shape.failures():
+            raise AssemblyError(
+                f"{build.spec.id}: at rest in a wrong shape: " + "; ".join(shape.failures()),
+                unsettled=snap,
+            )
+        return snap
+
+
+def assemble(
+    build: ConsignmentBuild,
+    settings: AssemblySettings | None = None,
+    *,
+    options: IntegratorOptions | None = None,
+    progress: Callable[[str, float], None] | None = None,
+    checkpoint: str | Path | None = None,
+) -> Snapshot:
+    """Open, fill, close and settle ``build``; returns the settled :class:`Snapshot`.
+
+    ``progress(phase, simulated_time)`` is called after every chunk. ``checkpoint``: an
+    ``.npz`` path (:mod:`flexparcel.consignments.assembly_checkpoint`); the assembly saves
+    its position there after every chunk (the closing every minute of wall time) and, if the
+    file exists, resumes from it exactly as if uninterrupted. It is removed when the assembly
+    ends, at rest or not; an error of the integrator leaves it for a look at the state.
+    """
+    st = settings or AssemblySettings()
+    run = _Assembly(build, st, options or _default_options(st), progress, checkpoint)
+    s = run.close(run.open())
+    model_c, s, kin = run.settle(s)
+    try:
+        return run.snapshot(model_c, s, kin)
+    finally:  # the assembly has ended, at rest or not: nothing to resume
+        if run.ck is not None:
+            run.ck.remove()
