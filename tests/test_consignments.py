@@ -432,7 +432,9 @@ def test_vertical_drop_hold_leaves_the_consignment_at_rest_at_the_drop_height(sm
     held = drop_model(small, "vertical", p, drop_height=0.05, hold=DropHold())
     c, s0, s1 = held.consignment, free.state0, held.state0
     rec = held.preparation["hold"]
-    assert rec["steps"] > 0 and rec["kinetic_end_j"] < 1e-9
+    # at rest: 1e-8 J is 200 times below the assembly's rest bound (kinetic_tolerance, 2e-6 J;
+    # measured 1.06e-9 J since the initial accelerations count the film's contact forces)
+    assert rec["steps"] > 0 and rec["kinetic_end_j"] < 1e-8
     assert np.all(s1.velocities == 0.0) and s1.time == 0.0
     z = s1.positions[c.packaging, 2]
     assert z.min() == pytest.approx(s0.positions[c.packaging, 2].min(), abs=1e-12)

@@ -249,3 +249,54 @@ def test_friction_tangent_option_is_validated_and_leaves_the_callers_laws():
     integ = GeneralizedAlpha(model, fp.IntegratorOptions(friction_tangent="symmetric"))
     assert np.all(integ.model.contact_laws[:, P_SLIP_TANGENT] == 2.0)
     assert np.all(model.contact_laws[:, P_SLIP_TANGENT] == 0.0)  # the caller's model
+
+
+def test_initial_accelerations_count_the_contact_forces():
+    # a 1 kg box come to rest on a plate: the consistent accelerations of a fresh integrator,
+    # M a = f_ext + f_contact - f_int, are those of a body at rest (its contact carries its
+    # weight); without the contact forces they were the free fall's g (the first step then
+    # had to find the contact's force from a 9.81 m/s^2 start)
+    from flexparcel.contact.law import ContactLaw
+    from flexparcel.integrate.dynamic import GeneralizedAlpha
+
+    b = fp.ModelBuilder(mass_damping=200.0)
+    node = b.add_rigid_body(fp.RoundedBox(0.1, 0.1, 0.1, 0.01, mass=1.0), (0.0, 0.0, 0.04999))
+    # 1e8 N/m^3 over the 0.1 m x 0.1 m face: 1e6 N/m, 10 um under the 1 kg box
+    b.add_contact(node, b.add_plane((0, 0, 0), (0, 0, 1)), ContactLaw(stiffness=1e8))
+    model = b.finalize()
+    rest = fp.simulate(model, 0.5, dt_out=0.5).final_state
+    assert np.abs(rest.velocities[node]).max() < 1e-6  # at rest
+    s = rest.copy()
+    GeneralizedAlpha(model).initialize(s)
+    # at rest to the residual speed's damping force (mass damping 200/s x 1e-6 m/s) and the
+    # integrator's tolerance on the contact's balance, far below g
+    assert np.linalg.norm(s.accelerations[node, :3]) < 1e-3 * 9.81
+
+
+def test_initial_accelerations_of_fdr_slaves_follow_their_master():
+    # a stretched strip whose free end is tied to a rigid body by an FDR, no gravity: the
+    # slaves move rigidly with the body (a_s = a_m + alpha_m x r at rest), and the body takes
+    # the strip's pull on all of them: its acceleration is their summed force over the body's
+    # and the slaves' mass. Before, each slave got its own force over its own 1e-4 kg
+    # (10^2-10^3 m/s^2 here, 2e6 m/s^2 at KP's glue stripe at 10 mm)
+    from flexparcel.integrate import assembly as asm
+    from flexparcel.integrate.dynamic import GeneralizedAlpha
+
+    b, tip, pts = strip_model(0.1, 0.02, 1e-3, 8, 2, rho=1000.0)
+    body = b.add_rigid_body(fp.RoundedBox(0.02, 0.04, 0.01, 0.002, mass=0.05), (0.11, 0.01, 0.0))
+    b.add_fdr(tip, reference=body)
+    model = b.finalize()
+    s = model.initial_state()
+    s.positions[: len(pts), 0] *= 1.01  # the strip 1 % longer: it pulls the body back
+    s.positions[body, 0] += 0.01 * 0.1  # (the body and its slaves with the tip)
+    asm.project_slaves(model, s.positions, s.rotations)
+    GeneralizedAlpha(model).initialize(s)
+    a = s.accelerations
+    arms = s.positions[tip] - s.positions[body]
+    np.testing.assert_allclose(a[tip, :3], a[body, :3] + np.cross(a[body, 3:], arms),
+                               rtol=0, atol=1e-9 * np.abs(a[body]).max())  # fmt: skip
+    fint, _ = asm.internal_forces(model, s.positions, s.rotations, s.velocities)
+    pull = -fint[tip, :3].sum(axis=0)
+    assert pull[0] < 0.0  # the stretched strip pulls the body towards it
+    total_mass = model.mass[body, 0] + model.mass[tip, 0].sum()
+    np.testing.assert_allclose(a[body, :3], pull / total_mass, rtol=1e-12, atol=1e-12)

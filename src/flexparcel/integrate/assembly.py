@@ -23,6 +23,8 @@ __all__ = [
     "reduction",
     "reduced_matrix",
     "project_slaves",
+    "lump_slaves",
+    "slave_accelerations",
     "link_geometric_stiffness",
     "kinetic_energy",
     "rigid_inertial_moments",
@@ -182,6 +184,37 @@ def link_geometric_stiffness(model: Model, r_ext: np.ndarray, rotations, t: sp.c
     rows = np.repeat(mr[ok], 3, axis=1).ravel()
     cols = np.tile(mr[ok], (1, 3)).ravel()
     return sp.csr_matrix((blk[ok].ravel(), (rows, cols)), shape=(nf, nf))
+
+
+def lump_slaves(
+    model: Model, rotations: np.ndarray, rhs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Nodal forces (n, 6) and lumped masses (n, 6) with every FDR slave's force moved onto
+    its master (its force, and its moment about the master, ``R_m b x f + m``) and its mass
+    onto the master's translations; the slaves' rows are zero. For the initial accelerations
+    of a model whose slaves follow their masters rigidly (the slaves' rotary inertia, some
+    1e-12 kg m^2 per film node, is left out)."""
+    s, ms = model.slave_nodes, model.slave_master
+    out, mass = rhs.copy(), model.mass.copy()
+    arms = _slave_arms(model, rotations)
+    np.add.at(out[:, :3], ms, rhs[s, :3])
+    np.add.at(out[:, 3:], ms, np.cross(arms, rhs[s, :3]) + rhs[s, 3:])
+    np.add.at(mass[:, :3], ms, model.mass[s, :3])
+    out[s], mass[s] = 0.0, 0.0
+    return out, mass
+
+
+def slave_accelerations(model: Model, rotations: np.ndarray, velocities: np.ndarray,
+                        qdd: np.ndarray) -> np.ndarray:  # fmt: skip
+    """Accelerations (s, 6) of the FDR slaves moving rigidly with their masters' ``qdd``
+    (n, 6): ``a_m + alpha_m x r + w_m x (w_m x r)`` with the arm ``r = R_m b``, and the
+    master's angular acceleration."""
+    ms = model.slave_master
+    arms = _slave_arms(model, rotations)
+    w = velocities[ms, 3:]
+    alpha = qdd[ms, 3:]
+    a = qdd[ms, :3] + np.cross(alpha, arms) + np.cross(w, np.cross(w, arms))
+    return np.hstack([a, alpha])
 
 
 def project_slaves(model: Model, positions: np.ndarray, rotations: np.ndarray) -> None:
