@@ -370,14 +370,15 @@ def test_swing_start_is_deterministic(small):
     # the full 1.4 s swing is far too long for the default suite. Clamped where the nodes
     # settled (jaws=None): the jaw closing is a run of the same integrator, and the jaws have
     # tests of their own
-    a = swing_test(small, t_end=0.02, jaws=None)
-    b = swing_test(small, t_end=0.02, jaws=None)
+    a = swing_test(small, t_end=0.01, jaws=None)
+    b = swing_test(small, t_end=0.01, jaws=None)
     assert np.array_equal(a.result.positions, b.result.positions)
-    # released from horizontal under gravity: the free end starts to fall (measured 0.13 mm)
-    # but, held by the clamped bending stiffness, by less than a free fall, g t^2 / 2 = 2 mm
+    # released from horizontal under gravity: the free end starts to fall (measured 0.20 mm;
+    # 0.15 mm at 0.02 s, it springs back on its bending stiffness) but, held by the clamped
+    # bending stiffness, by less than a free fall, g t^2 / 2 = 0.49 mm
     z = a.result.positions[:, a.consignment.edge, 2].mean(axis=1)
     drop = z[0] - z[-1]
-    assert 0.05e-3 < drop < 0.5 * 9.81 * 0.02**2
+    assert 0.05e-3 < drop < 0.5 * 9.81 * 0.01**2
 
 
 def test_packaging_friction_parameters_set_their_own_laws(small):
