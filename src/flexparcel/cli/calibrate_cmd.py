@@ -224,6 +224,11 @@ def _summarise(study, stage: str, result) -> None:
                         f" (co-kriging, rho {g['rho']:.3g}; high-only GP on the same high runs: "
                         f"{g['high_only_holdout_rmse']:.4g})"
                     )
+                if "loo_rmse" in g:  # a few high runs: each left out once (multifidelity.py)
+                    line += (
+                        f"; leave-one-out over {g['n_high']} high runs: fused "
+                        f"{g['loo_rmse']:.4g}, high-only {g['high_only_loo_rmse']:.4g}"
+                    )
                 print(line)
     elif stage == "optimise":
         for n in result["calibrated"]:
