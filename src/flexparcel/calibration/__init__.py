@@ -26,7 +26,7 @@ from flexparcel.calibration.designs import (
     full_factorial,
     latin_hypercube,
 )
-from flexparcel.calibration.execution import CampaignReport, run_campaign
+from flexparcel.calibration.execution import CampaignDrained, CampaignReport, run_campaign
 from flexparcel.calibration.multifidelity import CoKrigingSurrogate
 from flexparcel.calibration.optimise import NelderMeadCalibrator, range_weights, weighted_error
 from flexparcel.calibration.parameters import Parameter, ParameterSpace, Target
@@ -70,6 +70,7 @@ __all__ = [
     "RunSpec",
     "StudyStore",
     "StudyStoreError",
+    "CampaignDrained",
     "CampaignReport",
     "run_campaign",
     "register_simulator",

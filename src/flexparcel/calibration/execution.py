@@ -19,7 +19,12 @@ to ``done`` (or ``failed`` after its retries):
   in flight none is charged (the culprit is unknown); they run again one at a time, where a
   crash is the run's own and is charged;
 * worker processes end with the campaign, also when it is killed with SIGKILL
-  (:func:`flexparcel.io.lifetime.die_with_parent`).
+  (:func:`flexparcel.io.lifetime.die_with_parent`);
+* SIGUSR1 (POSIX) drains the campaign: it starts no new run, lets the runs in flight finish
+  and record their results, then raises :class:`CampaignDrained` with the rest still
+  ``pending``. A stop that loses nothing, where Ctrl-C (SIGINT) or a kill puts the runs in
+  flight back to ``pending`` and the next campaign runs them from their start (a run at the
+  paper's mesh can take the better part of an hour).
 
 Executors: ``concurrent.futures.ProcessPoolExecutor`` (``workers`` processes, the default),
 ``dask.distributed`` (``scheduler`` = the address of a running scheduler; workers need flexparcel
@@ -32,6 +37,9 @@ store mean "in flight".
 from __future__ import annotations
 
 import os
+import signal
+import sys
+import threading
 import time
 import traceback
 from collections import deque
@@ -42,7 +50,7 @@ from flexparcel.calibration.simulators import get_simulator
 from flexparcel.calibration.store import StudyStore, worker_label
 from flexparcel.io.lifetime import die_with_parent
 
-__all__ = ["CampaignReport", "execute_run", "not_retried", "run_campaign"]
+__all__ = ["CampaignDrained", "CampaignReport", "execute_run", "not_retried", "run_campaign"]
 
 _MAX_ERROR_CHARS = 8000
 
@@ -74,9 +82,53 @@ class CampaignReport:
         return not self.failed
 
 
+class CampaignDrained(Exception):
+    """A campaign stopped by SIGUSR1 once its runs in flight had finished; ``pending`` runs
+    are left for the next campaign (the same command goes on with them)."""
+
+    def __init__(self, pending: int, finished: int) -> None:
+        self.pending = pending
+        self.finished = finished
+        super().__init__(
+            f"drained on SIGUSR1: the {finished} run(s) in flight finished and were recorded, "
+            f"{pending} left pending; the same command goes on with them"
+        )
+
+
+class _Drain:
+    """SIGUSR1 sets :attr:`requested` between :meth:`start` and :meth:`stop` (main thread,
+    POSIX only; the previous handler comes back); :attr:`finished` counts the runs that
+    ended after it."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self.finished = 0
+        self._previous = None
+        main = threading.current_thread() is threading.main_thread()
+        self._on = main and hasattr(signal, "SIGUSR1")
+
+    def start(self) -> None:
+        if self._on:
+            self._previous = signal.signal(signal.SIGUSR1, self._handle)
+
+    def _handle(self, signum, frame) -> None:
+        if not self.requested:
+            print("calibrate: SIGUSR1: starting no new run; the runs in flight finish first",
+                  file=sys.stderr, flush=True)  # fmt: skip
+        self.requested = True
+
+    def stop(self) -> None:
+        if self._on:
+            signal.signal(signal.SIGUSR1, self._previous)
+
+
 def _init_worker(threads: int) -> None:
     # a campaign killed with SIGKILL takes its workers along (no run goes on unobserved)
     die_with_parent()
+    # the drain signal is the controller's: a worker that got it (a signal sent to the whole
+    # process group) would otherwise die of it and take its run along
+    if hasattr(signal, "SIGUSR1"):
+        signal.signal(signal.SIGUSR1, signal.SIG_IGN)
     # Two BLAS/OpenMP pools on few cores slow each other down; a worker is one run, one thread.
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
         os.environ.setdefault(var, str(threads))
@@ -277,8 +329,10 @@ def run_campaign(
         pool_broken = False
         # Worker processes get their BLAS pools limited; in-process runs keep the caller's.
         run_threads = None if label == "serial" else threads
+        drain = _Drain()
         try:
-            while queue or in_flight:
+            drain.start()
+            while (queue and not drain.requested) or in_flight:
                 if pool_broken and not in_flight:
                     # A crashed worker process breaks the whole pool: every run in flight got
                     # the error (and an attempt); a fresh pool runs the rest.
@@ -289,7 +343,7 @@ def run_campaign(
                     pool_broken = False
                 # while runs are under suspicion of having crashed a worker, one at a time
                 limit = 1 if suspects else max_in_flight
-                while not pool_broken and queue and len(in_flight) < limit:
+                while not drain.requested and not pool_broken and queue and len(in_flight) < limit:
                     key = _next_run(queue, suspects)
                     store.mark_running(key)
                     r = rows[key]
@@ -320,6 +374,7 @@ def run_campaign(
                         crashed_with = set(in_flight.values())
                     pool_broken |= broken
                     key = in_flight.pop(fut)
+                    drain.finished += drain.requested
                     if broken and len(crashed_with) > 1:
                         # a worker died while several runs were in flight: which one killed
                         # it is unknown, so none is charged; each runs again alone, where a
@@ -356,6 +411,7 @@ def run_campaign(
                         if bar is not None:
                             bar.update(1)
         finally:
+            drain.stop()
             for key in in_flight.values():
                 # Interrupted (KeyboardInterrupt, error in this process): not the run's fault.
                 store.mark_pending(key)
@@ -365,6 +421,8 @@ def run_campaign(
     finally:
         store.release_lock()
     report.wall_s = time.perf_counter() - t_start
+    if drain.requested and queue:
+        raise CampaignDrained(len(queue), drain.finished)
     return report
 
 

@@ -10,6 +10,10 @@ stopped when run again, and a single stage can be run later with ``--stage``.
 the cost of a run measured in the store or stated in the study, the total) without running
 anything. ``--budget 0.2`` runs every Latin hypercube at a fifth of its size (a pilot campaign
 the full one later extends); ``--runs EXPERIMENT=N`` sets one experiment's design runs.
+
+Stopping: Ctrl-C stops at once; the runs in flight go back to pending and start over next
+time. ``kill -USR1 PID`` (POSIX) drains instead: no new run starts, the runs in flight finish
+and are recorded, and the command exits with status 75; the same command goes on.
 """
 
 from __future__ import annotations
@@ -20,6 +24,9 @@ import sys
 __all__ = ["register", "run"]
 
 _STAGES = ("screen", "design", "fit", "optimise", "validate", "report")
+DRAINED_STATUS = 75
+"""Exit status of a campaign drained by SIGUSR1 (sysexits' EX_TEMPFAIL: stopped cleanly,
+not complete; the same command goes on)."""
 
 
 def register(subparsers) -> None:
@@ -141,6 +148,7 @@ def print_plan(plan: dict) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from flexparcel.calibration.execution import CampaignDrained
     from flexparcel.calibration.study import Study, load_study, scale_budget
 
     stages = _stages(args.stage)
@@ -175,6 +183,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"== {stage}", flush=True)
             try:
                 result = getattr(study, stage)()
+            except CampaignDrained as exc:
+                print(f"flexparcel calibrate: {stage}: {exc}", file=sys.stderr)
+                return DRAINED_STATUS
             except RuntimeError as exc:
                 print(f"flexparcel calibrate: {stage} failed: {exc}", file=sys.stderr)
                 return 1
