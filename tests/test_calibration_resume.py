@@ -80,6 +80,31 @@ def read_log(path: Path):
     return starts, ends
 
 
+def start_design_campaign(folder: Path):
+    """``flexparcel calibrate --stage design`` of a study of slow logged runs, started in a
+    new session (its own process group); returns the process, the command, its environment
+    and the call log."""
+    log = folder / "calls.log"
+    study = write_study(folder, setup=f'delay_s = {DELAY_S}, log_file = "{log}"', runs=N_RUNS)
+    cmd = [sys.executable, "-m", "flexparcel.cli", "calibrate", str(study), "--stage",
+           "design", "--no-progress"]  # fmt: skip
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(cmd, start_new_session=True, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)  # fmt: skip
+    return proc, cmd, env, log
+
+
+def wait_for(proc, log: Path, condition, timeout_s: float = 90.0) -> bool:
+    """Poll the call log until ``condition(starts, ends)`` holds (True), or the process ends
+    or the time is up (False)."""
+    deadline = time.time() + timeout_s
+    while time.time() < deadline and proc.poll() is None:
+        time.sleep(0.02)
+        if condition(*read_log(log)):
+            return True
+    return False
+
+
 def test_sigkill_mid_campaign_then_resume_loses_and_repeats_nothing(tmp_path):
     """Kill the whole campaign (controller and worker processes) with SIGKILL mid-way, resume.
 
@@ -89,42 +114,22 @@ def test_sigkill_mid_campaign_then_resume_loses_and_repeats_nothing(tmp_path):
     close is between a simulator finishing and its result being committed: a result lost there
     is correctly re-run, but would show up here as a duplicate ``end``.
     """
-    log = tmp_path / "calls.log"
-    study = write_study(tmp_path, setup=f'delay_s = {DELAY_S}, log_file = "{log}"', runs=N_RUNS)
-    cmd = [
-        sys.executable,
-        "-m",
-        "flexparcel.cli",
-        "calibrate",
-        str(study),
-        "--stage",
-        "design",
-        "--no-progress",
-    ]
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen(
-        cmd,
-        start_new_session=True,
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
+    proc, cmd, env, log = start_design_campaign(tmp_path)
     killed_at = None
-    deadline = time.time() + 90
+
+    def mid_sleep(starts, ends) -> bool:
+        if len(ends) < 4:
+            return False
+        now = time.time()
+        ended = {d for d, _ in ends}
+        open_ages = [now - ts[-1] for d, ts in starts.items() if d not in ended]
+        last_end = max(t for _, t in ends)
+        return now - last_end > 0.1 and bool(open_ages) and max(open_ages) < DELAY_S - 0.15
+
     try:
-        while time.time() < deadline and proc.poll() is None:
-            time.sleep(0.02)
-            starts, ends = read_log(log)
-            if len(ends) < 4:
-                continue
-            now = time.time()
-            ended = {d for d, _ in ends}
-            open_ages = [now - ts[-1] for d, ts in starts.items() if d not in ended]
-            last_end = max(t for _, t in ends)
-            if now - last_end > 0.1 and open_ages and max(open_ages) < DELAY_S - 0.15:
-                os.killpg(proc.pid, signal.SIGKILL)  # controller and its worker processes
-                killed_at = len(ends)
-                break
+        if wait_for(proc, log, mid_sleep):
+            os.killpg(proc.pid, signal.SIGKILL)  # controller and its worker processes
+            killed_at = len(read_log(log)[1])
     finally:
         if proc.poll() is None and killed_at is None:
             os.killpg(proc.pid, signal.SIGKILL)
@@ -163,24 +168,15 @@ def test_sigusr1_drains_the_campaign_then_resume_repeats_nothing(tmp_path):
     run started exactly once over both commands (nothing lost, nothing repeated)."""
     from flexparcel.cli.calibrate_cmd import DRAINED_STATUS
 
-    log = tmp_path / "calls.log"
-    study = write_study(tmp_path, setup=f'delay_s = {DELAY_S}, log_file = "{log}"', runs=N_RUNS)
-    cmd = [sys.executable, "-m", "flexparcel.cli", "calibrate", str(study), "--stage",
-           "design", "--no-progress"]  # fmt: skip
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen(cmd, start_new_session=True, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)  # fmt: skip
-    signalled = False
-    deadline = time.time() + 90
+    proc, cmd, env, log = start_design_campaign(tmp_path)
+
+    def in_flight(starts, ends) -> bool:
+        return len(ends) >= 2 and bool(set(starts) - {d for d, _ in ends})
+
     try:
-        while time.time() < deadline and proc.poll() is None:
-            time.sleep(0.02)
-            starts, ends = read_log(log)
-            ended = {d for d, _ in ends}
-            if len(ends) >= 2 and any(d not in ended for d in starts):
-                proc.send_signal(signal.SIGUSR1)  # the controller alone, not its workers
-                signalled = True
-                break
+        signalled = wait_for(proc, log, in_flight)
+        if signalled:
+            proc.send_signal(signal.SIGUSR1)  # the controller alone, not its workers
         err = proc.communicate(timeout=60)[1].decode()
     finally:
         if proc.poll() is None:
