@@ -199,6 +199,57 @@ def test_sigusr1_drains_the_campaign_then_resume_repeats_nothing(tmp_path):
     assert len(ends) == N_RUNS and all(len(t) == 1 for t in starts.values())
 
 
+def test_time_limit_starts_no_run_that_would_end_after_it(tmp_path):
+    """A study with a time limit starts a run only while its measured cost (the median wall
+    time of the finished runs of its kind) fits in what is left. With a limit of 1 ms the
+    first run, of a kind never run, has no cost yet and starts; the second has the first's
+    cost (DELAY_S and more) and does not: the campaign stops with the rest pending. A study
+    without a limit then finishes them, starting each run once."""
+    from flexparcel.calibration import CampaignDrained
+
+    log = tmp_path / "calls.log"
+    study = write_study(tmp_path, setup=f'delay_s = {DELAY_S}, log_file = "{log}"', runs=N_RUNS)
+    with Study(study, workers=0, progress=False, time_limit_s=1e-3) as st:
+        with pytest.raises(CampaignDrained, match="drained at the time limit") as info:
+            st.design()
+        (run,) = [r for r in st.store.all_runs() if r["status"] == "done"]
+        assert run["wall_s"] >= DELAY_S
+    starts, ends = read_log(log)
+    assert len(starts) == len(ends) == 1
+    assert info.value.pending == 2 * N_RUNS - 1 and info.value.finished == 0
+    with Study(study, workers=0, progress=False) as st:
+        st.design()
+    starts, ends = read_log(log)
+    assert len(ends) == N_RUNS and all(len(t) == 1 for t in starts.values())
+    with pytest.raises(ValueError, match="time_limit_s must be > 0 s"):
+        Study(study, time_limit_s=0.0)
+
+
+@pytest.mark.parametrize(
+    "text, seconds",
+    [
+        ("2h", 7200.0),
+        ("1h30m", 5400.0),
+        ("90m", 5400.0),
+        ("45s", 45.0),
+        ("600", 600.0),
+        ("1.5h", 5400.0),
+    ],  # fmt: skip
+)
+def test_time_limit_durations(text, seconds):
+    from flexparcel.cli.calibrate_cmd import parse_duration
+
+    assert parse_duration(text) == seconds
+
+
+@pytest.mark.parametrize("text", ["", "0", "2x", "h", "2h30", "-5m"])
+def test_time_limit_bad_durations_name_the_option(text):
+    from flexparcel.cli.calibrate_cmd import parse_duration
+
+    with pytest.raises(ValueError, match="--time-limit .*expected a duration > 0"):
+        parse_duration(text)
+
+
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_dask_cluster_gives_the_same_study_as_local_processes(tmp_path):
     from distributed import LocalCluster

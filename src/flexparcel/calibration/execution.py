@@ -24,7 +24,12 @@ to ``done`` (or ``failed`` after its retries):
   and record their results, then raises :class:`CampaignDrained` with the rest still
   ``pending``. A stop that loses nothing, where Ctrl-C (SIGINT) or a kill puts the runs in
   flight back to ``pending`` and the next campaign runs them from their start (a run at the
-  paper's mesh can take the better part of an hour).
+  paper's mesh can take the better part of an hour);
+* a ``deadline`` drains it the same way before the first run that would end after it: a
+  run's cost is the median wall time of the store's finished runs of its simulator and setup
+  (:func:`~flexparcel.calibration.store.cost_key`), updated as runs finish; a run of a kind
+  never finished has no known cost and starts (a job with a wall-time limit on a cluster,
+  a machine lent for some hours).
 
 Executors: ``concurrent.futures.ProcessPoolExecutor`` (``workers`` processes, the default),
 ``dask.distributed`` (``scheduler`` = the address of a running scheduler; workers need flexparcel
@@ -38,6 +43,7 @@ from __future__ import annotations
 
 import os
 import signal
+import statistics
 import sys
 import threading
 import time
@@ -47,7 +53,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 from flexparcel.calibration.simulators import get_simulator
-from flexparcel.calibration.store import StudyStore, worker_label
+from flexparcel.calibration.store import StudyStore, cost_key, worker_label
 from flexparcel.io.lifetime import die_with_parent
 
 __all__ = ["CampaignDrained", "CampaignReport", "execute_run", "not_retried", "run_campaign"]
@@ -83,14 +89,15 @@ class CampaignReport:
 
 
 class CampaignDrained(Exception):
-    """A campaign stopped by SIGUSR1 once its runs in flight had finished; ``pending`` runs
-    are left for the next campaign (the same command goes on with them)."""
+    """A campaign stopped by SIGUSR1 or its deadline once its runs in flight had finished;
+    ``pending`` runs are left for the next campaign (the same command goes on with them)."""
 
-    def __init__(self, pending: int, finished: int) -> None:
+    def __init__(self, pending: int, finished: int, reason: str = "on SIGUSR1") -> None:
         self.pending = pending
         self.finished = finished
+        self.reason = reason
         super().__init__(
-            f"drained on SIGUSR1: the {finished} run(s) in flight finished and were recorded, "
+            f"drained {reason}: the {finished} run(s) in flight finished and were recorded, "
             f"{pending} left pending; the same command goes on with them"
         )
 
@@ -102,6 +109,7 @@ class _Drain:
 
     def __init__(self) -> None:
         self.requested = False
+        self.reason = "on SIGUSR1"
         self.finished = 0
         self._previous = None
         main = threading.current_thread() is threading.main_thread()
@@ -112,9 +120,13 @@ class _Drain:
             self._previous = signal.signal(signal.SIGUSR1, self._handle)
 
     def _handle(self, signum, frame) -> None:
+        self.request("SIGUSR1", "on SIGUSR1")
+
+    def request(self, why: str, reason: str) -> None:
         if not self.requested:
-            print("calibrate: SIGUSR1: starting no new run; the runs in flight finish first",
+            print(f"calibrate: {why}: starting no new run; the runs in flight finish first",
                   file=sys.stderr, flush=True)  # fmt: skip
+            self.reason = reason
         self.requested = True
 
     def stop(self) -> None:
@@ -269,6 +281,7 @@ def run_campaign(
     start_method: str = "spawn",
     progress: bool = True,
     desc: str = "runs",
+    deadline: float | None = None,
 ) -> CampaignReport:
     """Execute the runs ``keys`` of ``store`` that are not done yet.
 
@@ -289,6 +302,9 @@ def run_campaign(
         Modules to import (in workers too) so that the simulators register themselves.
     threads:
         BLAS/OpenMP threads per worker process.
+    deadline:
+        ``time.time()`` [s] by which the runs started must have ended (see the module
+        docstring); None: no limit.
     """
     if retries < 0:
         raise ValueError(f"retries must be >= 0, got {retries}")
@@ -330,6 +346,7 @@ def run_campaign(
         # Worker processes get their BLAS pools limited; in-process runs keep the caller's.
         run_threads = None if label == "serial" else threads
         drain = _Drain()
+        walls = store.wall_times() if deadline is not None else {}
         try:
             drain.start()
             while (queue and not drain.requested) or in_flight:
@@ -345,6 +362,11 @@ def run_campaign(
                 limit = 1 if suspects else max_in_flight
                 while not drain.requested and not pool_broken and queue and len(in_flight) < limit:
                     key = _next_run(queue, suspects)
+                    late = _ends_after(deadline, walls.get(cost_key(rows[key])))
+                    if late:
+                        queue.appendleft(key)
+                        drain.request(late, "at the time limit")
+                        break
                     store.mark_running(key)
                     r = rows[key]
                     try:
@@ -386,6 +408,7 @@ def run_campaign(
                         continue
                     suspects.discard(key)
                     if outcome["ok"]:
+                        walls.setdefault(cost_key(rows[key]), []).append(outcome["wall_s"])
                         store.mark_done(
                             key,
                             outcome["responses"],
@@ -422,8 +445,20 @@ def run_campaign(
         store.release_lock()
     report.wall_s = time.perf_counter() - t_start
     if drain.requested and queue:
-        raise CampaignDrained(len(queue), drain.finished)
+        raise CampaignDrained(len(queue), drain.finished, drain.reason)
     return report
+
+
+def _ends_after(deadline: float | None, walls: list[float] | None) -> str:
+    """Why a run of measured wall times ``walls`` [s] started now would end after
+    ``deadline``, or "" (no deadline, no measured cost, or it fits)."""
+    if deadline is None or not walls:
+        return ""
+    cost = statistics.median(walls)
+    left = deadline - time.time()
+    if cost <= left:
+        return ""
+    return f"time limit: the next run takes about {cost:.0f} s, {max(left, 0.0):.0f} s are left"
 
 
 def _next_run(queue: deque, suspects: set) -> str:

@@ -33,7 +33,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["SCHEMA_VERSION", "StudyStore", "StudyStoreError", "RunSpec", "run_key"]
+__all__ = ["SCHEMA_VERSION", "StudyStore", "StudyStoreError", "RunSpec", "cost_key", "run_key"]
 
 #: Version of the store layout; a store written with another version is refused.
 SCHEMA_VERSION = 1
@@ -144,6 +144,12 @@ def run_key(simulator: str, version: str, setup: Mapping, params: Mapping[str, f
 
 def _dumps(obj) -> str:
     return json.dumps(obj, sort_keys=True, allow_nan=True)
+
+
+def cost_key(run: Mapping) -> tuple[str, str]:
+    """What sets a run's cost: its simulator and setup (the fidelity level's element size,
+    the simulated time...), from a store row or anything with those two fields."""
+    return str(run["simulator"]), json.dumps(run["setup"], sort_keys=True)
 
 
 class StudyStore:
@@ -353,6 +359,15 @@ class StudyStore:
     def all_runs(self) -> list[dict]:
         rows = self._conn.execute("SELECT * FROM runs ORDER BY created, run_key").fetchall()
         return [self._decode(r) for r in rows]
+
+    def wall_times(self) -> dict[tuple[str, str], list[float]]:
+        """Wall times [s] of the finished runs, by :func:`cost_key` (simulator and setup):
+        what a run of that kind costs on the machines that ran them."""
+        out: dict[tuple[str, str], list[float]] = {}
+        for r in self.all_runs():
+            if r["status"] == "done" and r["wall_s"] is not None:
+                out.setdefault(cost_key(r), []).append(float(r["wall_s"]))
+        return out
 
     @staticmethod
     def _decode(row: sqlite3.Row) -> dict:

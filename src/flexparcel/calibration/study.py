@@ -29,6 +29,7 @@ import hashlib
 import json
 import math
 import os
+import time
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -49,7 +50,7 @@ from flexparcel.calibration.parameters import Parameter, ParameterSpace, Target
 from flexparcel.calibration.reach import ReachClassifier
 from flexparcel.calibration.screening import screen_responses
 from flexparcel.calibration.simulators import get_simulator
-from flexparcel.calibration.store import RunSpec, StudyStore
+from flexparcel.calibration.store import RunSpec, StudyStore, cost_key
 from flexparcel.calibration.surrogates import KERNELS, GPRSurrogate
 
 __all__ = [
@@ -826,6 +827,10 @@ class Study:
         Give runs that failed in earlier campaigns a fresh retry budget.
     progress:
         Show progress bars.
+    time_limit_s:
+        Wall time [s] from now within which every run this study starts must end: a
+        campaign starts no run whose measured cost would take it past, and raises
+        :class:`~flexparcel.calibration.execution.CampaignDrained` with the rest pending.
     """
 
     def __init__(
@@ -839,7 +844,11 @@ class Study:
         retries: int | None = None,
         retry_failed: bool = False,
         progress: bool = True,
+        time_limit_s: float | None = None,
     ):
+        if time_limit_s is not None and not (math.isfinite(time_limit_s) and time_limit_s > 0):
+            raise ValueError(f"time_limit_s must be > 0 s, got {time_limit_s!r}")
+        self.deadline = None if time_limit_s is None else time.time() + float(time_limit_s)
         self.config = config if isinstance(config, StudyConfig) else load_study(config)
         c = self.config
         self.store_path = Path(store) if store is not None else c.store
@@ -897,6 +906,7 @@ class Study:
             threads=self.config.threads,
             progress=self.progress,
             desc=label,
+            deadline=self.deadline,
         )
         self.campaigns[label] = rep
         return rep
@@ -1329,12 +1339,8 @@ class Study:
         stored: dict[tuple[str, str], list[str]] = {}  # (store stage, experiment) -> statuses
         if self.store_path.exists():
             with StudyStore(self.store_path) as store:
-                status = {}
-                for r in store.all_runs():
-                    status[r["run_key"]] = r["status"]
-                    if r["status"] == "done" and r["wall_s"] is not None:
-                        key = (r["simulator"], json.dumps(r["setup"], sort_keys=True))
-                        walls.setdefault(key, []).append(float(r["wall_s"]))
+                status = {r["run_key"]: r["status"] for r in store.all_runs()}
+                walls = store.wall_times()
                 for exp in c.experiments:
                     for st in set(_PLAN_STORE_STAGES.values()):
                         keys = store.design_keys(st, exp)
@@ -1347,8 +1353,8 @@ class Study:
             return statuses.count("done"), statuses.count("failed")
 
         def cost(exp, level):
-            setup = json.dumps(c.setup_of(exp.name, level), sort_keys=True)
-            w = walls.get((exp.simulator, setup))
+            run = {"simulator": exp.simulator, "setup": c.setup_of(exp.name, level)}
+            w = walls.get(cost_key(run))
             if w:
                 return float(np.median(w)), f"measured ({len(w)} runs in the store)"
             stated = exp.estimated_run_s

@@ -14,6 +14,7 @@ the full one later extends); ``--runs EXPERIMENT=N`` sets one experiment's desig
 Stopping: Ctrl-C stops at once; the runs in flight go back to pending and start over next
 time. ``kill -USR1 PID`` (POSIX) drains instead: no new run starts, the runs in flight finish
 and are recorded, and the command exits with status 75; the same command goes on.
+``--time-limit 3h`` drains the same way before the first run that would end after 3 h.
 """
 
 from __future__ import annotations
@@ -81,6 +82,13 @@ def register(subparsers) -> None:
         metavar="EXPERIMENT=N",
         help="design runs of one experiment (repeatable; applied after --budget)",
     )
+    p.add_argument(
+        "--time-limit",
+        metavar="DURATION",
+        help="start no run that would end later than DURATION from now (e.g. 2h, 90m, "
+        "1h30m, 600s; a run's cost: the median wall time of the store's finished runs of "
+        "its kind); the runs in flight finish, exit status 75",
+    )
     p.set_defaults(func=run)
 
 
@@ -108,6 +116,37 @@ def _runs(items: list[str] | None) -> dict[str, int]:
         if not sep or not name.strip():
             raise ValueError(f"--runs {item!r}: expected EXPERIMENT=N, e.g. swing=20")
     return out
+
+
+_UNITS_S = {"h": 3600.0, "m": 60.0, "s": 1.0}
+
+
+def parse_duration(text: str) -> float:
+    """Seconds in ``text``: a number of seconds, or amounts with units h, m, s (``2h``,
+    ``1h30m``, ``90m``, ``45s``); > 0, else a ValueError naming ``--time-limit``."""
+    t = text.strip().lower()
+    total, number = 0.0, ""
+    try:
+        if t and t.replace(".", "", 1).isdigit():
+            total = float(t)
+        else:
+            for ch in t:
+                if ch.isdigit() or ch == ".":
+                    number += ch
+                elif ch in _UNITS_S and number:
+                    total += float(number) * _UNITS_S[ch]
+                    number = ""
+                else:
+                    raise ValueError
+            if number:
+                raise ValueError
+    except ValueError:
+        total = 0.0
+    if not total > 0.0:
+        raise ValueError(
+            f"--time-limit {text!r}: expected a duration > 0, e.g. 2h, 90m, 1h30m or 600 (s)"
+        )
+    return total
 
 
 def _duration(s: float) -> str:
@@ -164,6 +203,7 @@ def run(args: argparse.Namespace) -> int:
         retries=args.retries,
         retry_failed=args.retry_failed,
         progress=not args.no_progress and sys.stderr.isatty(),
+        time_limit_s=None if args.time_limit is None else parse_duration(args.time_limit),
     )
     try:
         study.check()
