@@ -55,19 +55,20 @@ def test_elements_are_valid_and_the_mesh_conforms(size, radius, h):
     np.testing.assert_allclose(np.ptp(mesh.points, axis=0), size, rtol=1e-12)
 
 
+@pytest.mark.parametrize("fine", [0.005, pytest.param(0.0025, marks=pytest.mark.slow)])
 @pytest.mark.parametrize(("size", "radius"), [PB, BOX], ids=["flat-core", "box"])
-def test_volume_converges_to_steiners_formula_at_the_rate_of_the_chords(size, radius):
+def test_volume_converges_to_steiners_formula_at_the_rate_of_the_chords(size, radius, fine):
     """The rounded surface is resolved by chords, n_t per quarter circle: a quarter disc
     loses 1 - (2 n / pi) sin(pi / 2n) ~ (pi / 2n)^2 / 6 of its area (10 % at n = 2, 1.1 %
     at n = 6), and the octants lose the same order. So the volume error falls as 1 / n_t^2:
-    from n_t = 2 (h = 10 mm) to 6 (r = 10 mm) or 9 (r = 15 mm) at h = 2.5 mm, by 9 or 20.
-    Bounds: the error is a deficit (the chords lie inside), below the quarter disc's own
-    deficit at each n (the flat parts are exact), and its fall is (n2 / n1)^2 within a third
-    (the octants' and the cylinders' shares change a little with n; measured 0.96 and
-    0.95)."""
+    from n_t = 2 (h = 10 mm) to 3 (r = 10 mm) or 5 (r = 15 mm) at h = 5 mm, by 2.25 or 6.25
+    (slow: 6 or 9 at 2.5 mm, by 9 or 20). Bounds: the error is a deficit (the chords lie
+    inside), below the quarter disc's own deficit at each n (the flat parts are exact), and
+    its fall is (n2 / n1)^2 within a third (the octants' and the cylinders' shares change a
+    little with n; measured 0.98 and 0.95 at 5 mm, 0.96 and 0.95 at 2.5 mm)."""
     exact = rounded_block_volume(size, radius)
     errors = {}
-    for h in (0.01, 0.0025):
+    for h in (0.01, fine):
         mesh = rounded_block(size, radius, h)
         n_t = max(2, round(0.5 * np.pi * radius / h))
         vol = sum(
@@ -78,7 +79,7 @@ def test_volume_converges_to_steiners_formula_at_the_rate_of_the_chords(size, ra
         assert 0.0 < err < 1.0 - (2 * n_t / np.pi) * np.sin(np.pi / (2 * n_t)), (h, err)
         errors[n_t] = err
     (n1, e1), (n2, e2) = sorted(errors.items())
-    assert n1 == 2 and n2 >= 6
+    assert n1 == 2 and n2 >= 3
     assert 0.67 < (e1 / e2) / (n2 / n1) ** 2 < 1.33, errors
 
 
