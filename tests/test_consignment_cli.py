@@ -205,6 +205,7 @@ def test_run_swing_from_snapshot(assembled, tmp_path, capsys):
     assert isinstance(jaws["steps"], int) and jaws["steps"] > 0
     assert 0.0 < jaws["wall_s"] <= r["wall_s"] and jaws["kinetic_end_j"] < 1e-6
     assert not (out / "snapshot.npz").exists()  # started from the given one
+    assert not (out / "checkpoint.npz").exists()  # saved while it ran, removed at its end
     for name in ("results.npz", "frames.png", "response.png", "paraview/packaging.pvd",
                  "paraview/packaging_0000.vtu", "paraview/content.pvd"):  # fmt: skip
         assert (out / name).is_file(), name

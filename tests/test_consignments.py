@@ -454,6 +454,40 @@ def test_vertical_drop_hold_leaves_the_consignment_at_rest_at_the_drop_height(sm
         drop_model(small, "horizontal", p, hold=DropHold())
 
 
+def test_an_interrupted_drop_resumes_from_its_checkpoint_bit_for_bit(small, tmp_path,
+                                                                     monkeypatch):  # fmt: skip
+    # a test with a checkpoint saves itself at its output frames (here every frame) and an
+    # interrupted run resumes from the last save to the very frames of an uninterrupted run:
+    # the state, the integrator's history and the contacts' (the film lies on its content)
+    import flexparcel.scenarios.consignment_tests as ct
+    from flexparcel.scenarios.registry import get_scenario
+
+    monkeypatch.setattr(ct, "CHECKPOINT_INTERVAL_S", 0.0)
+    path = tmp_path / "checkpoint.npz"
+    scenario = get_scenario("drop-horizontal", checkpoint=path)
+
+    class Stop(Exception):
+        pass
+
+    def stop(t, _t_end):
+        if t >= 0.005:
+            raise Stop
+
+    with pytest.raises(Stop):
+        scenario.run(small, {}, t_end=0.01, progress=stop)
+    assert path.is_file()
+    resumed = scenario.run(small, {}, t_end=0.01)
+    full = get_scenario("drop-horizontal").run(small, {}, t_end=0.01)
+    assert np.array_equal(resumed.simulation.time, full.simulation.time)
+    assert np.array_equal(resumed.simulation.positions, full.simulation.positions)
+    assert np.array_equal(resumed.simulation.velocities, full.simulation.velocities)
+    assert resumed.record.responses == full.record.responses
+    # a checkpoint of another run (another drop height: another start state) is refused
+    other = get_scenario("drop-horizontal", drop_height=0.1, checkpoint=path)
+    with pytest.raises(ValueError, match="written for another initial state"):
+        other.run(small, {}, t_end=0.01)
+
+
 def test_jaws_close_the_clamp_flat_and_leave_the_consignment_at_rest(small):
     # the paper's clamp presses both layers together over 2 cm; the settled envelope has them
     # apart there, so the swing closes the clamp as flat jaws before the release

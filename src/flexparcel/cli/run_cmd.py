@@ -7,6 +7,7 @@ and settings, finds the snapshots and prints what came out."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from flexparcel.cli.assemble_cmd import CONSIGNMENT_HELP, element_size_m
@@ -44,9 +45,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "and deflector force against time), DIR/responses.json, DIR/results.npz, "
         "DIR/paraview/conveyor.pvd, DIR/snapshots.png (top views at 0, 1, 2 s), "
         "DIR/trajectories.png, DIR/motion.png and DIR/animation.gif; snapshots are assembled into "
-        "DIR/snapshots/ (reused when present) unless --snapshot-dir is given. A conveyor "
-        "run saves DIR/checkpoint.npz about once a minute: the same command resumes an "
-        "interrupted run from it.",
+        "DIR/snapshots/ (reused when present) unless --snapshot-dir is given. Every run "
+        "saves DIR/checkpoint.npz about once a minute: the same command resumes an "
+        "interrupted run from it (the swing's jaws close again, the same way, first); the "
+        "swing and the drops remove it once their results are written.",
     )
     # no argparse choices: the registry (with third-party entry points) is read when running,
     # so that --help imports no scenario
@@ -201,7 +203,7 @@ def run(args: argparse.Namespace) -> int:
     from flexparcel.consignments.snapshot import check_snapshot_matches, load_snapshot
     from flexparcel.consignments.userfile import resolve_consignment
     from flexparcel.integrate.errors import ConvergenceError
-    from flexparcel.scenarios.base import T_END
+    from flexparcel.scenarios.base import CHECKPOINT_FILE, T_END
     from flexparcel.scenarios.registry import get_scenario
 
     if args.test == "conveyor":
@@ -243,16 +245,21 @@ def run(args: argparse.Namespace) -> int:
     check_set_bounds(args.assignments)
     params = scenario.resolve(args.assignments, snap.build if snap is not None else build)
     progress = not args.no_progress
+    checkpoint = args.out / CHECKPOINT_FILE
+    scenario.set_checkpoint(checkpoint)
     try:
         if snap is None:
             snap, source = shipped_or_assembled(build, args.out, progress=progress)
         else:
             source = str(args.snapshot)
+        if checkpoint.exists():
+            print(f"{args.test}: resuming from {checkpoint}", file=sys.stderr)
         result, files = run_and_write(scenario, snap, params, args.out, t_end=args.t_end,
                                       progress=progress, extra={"snapshot": source})  # fmt: skip
     except (AssemblyError, ConvergenceError) as exc:
         report_failure(f"flexparcel run: {args.test} failed: {exc}")
         return 1
+    checkpoint.unlink(missing_ok=True)  # its frames are in results.npz now
     responses = format_responses(scenario.responses(result))
     simulated = float(result.simulation.time[-1] - result.simulation.time[0])
     print(f"{args.test} {snap.build.spec.id}: {responses}; {simulated:g} s simulated in "
@@ -352,8 +359,6 @@ def _conveyor_refs(args: argparse.Namespace, scene) -> dict[str, str]:
 
 
 def _run_conveyor(args: argparse.Namespace) -> int:
-    import sys
-
     from flexparcel.cli.outdir import report_failure
     from flexparcel.cli.progress import SimulationProgress
     from flexparcel.cli.snapshots import snapshot_for

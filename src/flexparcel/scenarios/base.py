@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from flexparcel.simulate import SimulationResult
 
 __all__ = [
+    "CHECKPOINT_FILE",
     "Parameter",
     "Response",
     "ScenarioResult",
@@ -117,6 +118,10 @@ class Parameter:
 
 T_END = Parameter("t_end", "s", None, 0.0, 10.0, "simulated time", low_open=True)
 """The simulated time every scenario's ``run`` takes (its default is the scenario's own)."""
+
+CHECKPOINT_FILE = "checkpoint.npz"
+"""Name of the checkpoint a run in a directory (``flexparcel run ... --out DIR``) saves
+itself to and resumes from."""
 
 
 @dataclass(frozen=True)

@@ -116,6 +116,15 @@ class ConsignmentTest(ScenarioBase):
     assembled with. "tension-field" lets the film wrinkle in the test while it starts from
     an elastic-settled snapshot (docs/scenarios.md, the swing at 10 mm)."""
 
+    checkpoint: Path | None = None
+    """A ``.npz`` the run saves itself to about once a minute and resumes from (None: none;
+    ``flexparcel run`` keeps ``DIR/checkpoint.npz``). A checkpoint of another run (other
+    parameters, snapshot or settings) is refused by name."""
+
+    def set_checkpoint(self, checkpoint: str | Path | None) -> None:
+        """Set :attr:`checkpoint`."""
+        self.checkpoint = None if checkpoint is None else Path(checkpoint)
+
     def set_membrane(self, membrane: str | None) -> None:
         """Check and set :attr:`membrane`."""
         if membrane is not None and membrane not in MEMBRANE_LAWS:
@@ -147,6 +156,7 @@ class ConsignmentTest(ScenarioBase):
 
     def _test_run(self, snapshot: Snapshot, parameters: dict, t_end: float, dt_out: float,
                   progress: Any) -> TestRun:  # fmt: skip
+        """The test's run; :attr:`checkpoint` goes to its simulation."""
         raise NotImplementedError
 
     def run(

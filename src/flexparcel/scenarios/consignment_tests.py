@@ -31,6 +31,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
@@ -284,12 +285,23 @@ def _options(options: IntegratorOptions | None) -> IntegratorOptions:
     return options or drop_options()
 
 
-def _run(model, s0, t_end, dt_out, options, progress) -> tuple[SimulationResult, float]:
-    """The test's simulation from ``s0`` and its wall time [s]."""
+CHECKPOINT_INTERVAL_S = 60.0
+"""Wall time [s] between two saves of a test's checkpoint (at an output frame)."""
+
+
+def _run(
+    model, s0, t_end, dt_out, options, progress, checkpoint=None
+) -> tuple[SimulationResult, float]:
+    """The test's simulation from ``s0`` and its wall time [s]. ``checkpoint``: a ``.npz``
+    the run saves itself to about once a minute and resumes from (:func:`simulate`); the
+    wall time then counts the run's earlier parts too."""
     wall = time.perf_counter()
     res = simulate(model, t_end, dt_out=dt_out, options=_options(options), state=s0,
-                   progress=progress)  # fmt: skip
-    return res, time.perf_counter() - wall
+                   progress=progress, checkpoint=checkpoint,
+                   checkpoint_interval_s=CHECKPOINT_INTERVAL_S)  # fmt: skip
+    if checkpoint is None:
+        return res, time.perf_counter() - wall
+    return res, float(res.stats["wall_s"]["total"])
 
 
 @dataclass
@@ -361,15 +373,19 @@ def swing_test(
     stick_model: bool = True,
     jaws: JawClosing | None = JAWS,
     air_drag: float = 0.0,
+    checkpoint: str | Path | None = None,
 ) -> TestRun:
     """Clamp ``clamped_length`` [m] of the length (the -x end, both layers; closed as flat
     jaws first unless ``jaws`` is None, see :func:`swing_model`), release the horizontal
     consignment under gravity for ``t_end`` [s]. The wall time includes the jaw closing.
-    ``air_drag``: drag coefficient of the envelope in still air (0: none, the paper's model)."""
+    ``air_drag``: drag coefficient of the envelope in still air (0: none, the paper's model).
+    ``checkpoint``: see :func:`_run`; the jaws close again on resume (the same closing, so
+    the same start state, which the checkpoint's header checks)."""
     p = parse_assignments(parameters)
     tm = swing_model(snapshot, p, clamped_length=clamped_length, stick_model=stick_model,
                      jaws=jaws, air_drag=air_drag)  # fmt: skip
-    res, wall = _run(tm.model, tm.state0, t_end, dt_out, options or swing_options(), progress)
+    res, wall = _run(tm.model, tm.state0, t_end, dt_out, options or swing_options(), progress,
+                     checkpoint)  # fmt: skip
     wall += tm.preparation.get("jaw_closing", {}).get("wall_s", 0.0)
     free_end = res.positions[:, tm.consignment.edge, 0].mean(axis=1)
     first, second = swing_peaks(free_end - tm.reference)
@@ -488,17 +504,18 @@ def drop_test(
     stick_model: bool = True,
     air_drag: float = 0.0,
     hold: DropHold | None = None,
+    checkpoint: str | Path | None = None,
 ) -> TestRun:
     """Release the consignment from rest with its lowest point ``drop_height`` [m] above a
     rigid plate (z = 0): lying flat ("horizontal") or standing on its +x edge ("vertical",
     KP/BW's glued strip, with a line contact of that edge against the plate; with ``hold``
     held at rest by its top end first, see :func:`drop_model`). ``air_drag``: drag
     coefficient of the envelope in still air (0: none, the paper's model). The wall time
-    includes the hold."""
+    includes the hold. ``checkpoint``: see :func:`_run` (a hold runs again on resume)."""
     p = parse_assignments(parameters)
     tm = drop_model(snapshot, orientation, p, drop_height=drop_height, stick_model=stick_model,
                     air_drag=air_drag, hold=hold)  # fmt: skip
-    res, wall = _run(tm.model, tm.state0, t_end, dt_out, options, progress)
+    res, wall = _run(tm.model, tm.state0, t_end, dt_out, options, progress, checkpoint)
     wall += tm.preparation.get("hold", {}).get("wall_s", 0.0)
     gap, gap_why = camera_clearance(tm.model, res, tm.consignment, touch_radius=tm.reference)
     rise, rise_why = com_rise_outcome(tm.model, res, tm.consignment, touch_radius=tm.reference)

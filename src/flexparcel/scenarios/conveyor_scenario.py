@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from flexparcel.scenarios.base import (
+    CHECKPOINT_FILE,
     T_END,
     Parameter,
     PictureWriter,
@@ -55,8 +56,6 @@ if TYPE_CHECKING:
 __all__ = ["ConveyorScenario", "CONVEYOR_PARAMETERS", "WORKERS", "CHECKPOINT_FILE",
            "content_law_for", "group_settings", "deflector_friction_table"]  # fmt: skip
 
-CHECKPOINT_FILE = "checkpoint.npz"
-"""Name of the checkpoint a run in a directory saves itself to."""
 
 CONVEYOR_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("belt_speed", "m/s", None, 0.0, 10.0, "belt speed (default the scene's, 1.6)"),

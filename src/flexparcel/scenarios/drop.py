@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -65,7 +66,8 @@ class DropScenario(ConsignmentTest):
 
     def __init__(self, orientation: str, *, drop_height: float = DROP_HEIGHT,
                  stick_model: bool = True, air_drag: float = 0.0,
-                 hold: DropHold | None = None, membrane: str | None = None):  # fmt: skip
+                 hold: DropHold | None = None, membrane: str | None = None,
+                 checkpoint: str | Path | None = None):  # fmt: skip
         if orientation not in ("vertical", "horizontal"):
             raise ValueError(f"orientation must be 'vertical' or 'horizontal', got {orientation!r}")
         if not 0.0 < drop_height <= 10.0:
@@ -79,6 +81,7 @@ class DropScenario(ConsignmentTest):
             raise ValueError("hold applies to the vertical drop only")
         self.hold = hold
         self.set_membrane(membrane)
+        self.set_checkpoint(checkpoint)
 
     def build(self, consignment: Snapshot | Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip
@@ -95,7 +98,7 @@ class DropScenario(ConsignmentTest):
         return drop_test(snapshot, self.orientation, parameters, t_end=t_end, dt_out=dt_out,
                          drop_height=self.drop_height, progress=progress,
                          stick_model=self.stick_model, air_drag=self.air_drag,
-                         hold=self.hold)  # fmt: skip
+                         hold=self.hold, checkpoint=self.checkpoint)  # fmt: skip
 
     def responses(self, result: ScenarioResult) -> dict[str, Response]:
         run: TestRun = result.record

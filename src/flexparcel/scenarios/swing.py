@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import asdict
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -53,7 +54,7 @@ class SwingScenario(ConsignmentTest):
 
     def __init__(self, *, clamped_length: float = CLAMPED_LENGTH, stick_model: bool = True,
                  jaws: JawClosing | None = JAWS, air_drag: float = 0.0,
-                 membrane: str | None = None):  # fmt: skip
+                 membrane: str | None = None, checkpoint: str | Path | None = None):  # fmt: skip
         if not 0.0 < clamped_length < 1.0:
             raise ValueError(f"clamped_length must be in (0, 1) m, got {clamped_length!r}")
         self.air_drag = check_drag_coefficient(air_drag, "air_drag (drag coefficient C_d)")
@@ -61,6 +62,7 @@ class SwingScenario(ConsignmentTest):
         self.stick_model = bool(stick_model)
         self.jaws = jaws
         self.set_membrane(membrane)
+        self.set_checkpoint(checkpoint)
 
     def build(self, consignment: Snapshot | Mapping[str, Snapshot],
               parameters: Mapping[str, float | None]) -> TestModel:  # fmt: skip
@@ -78,7 +80,8 @@ class SwingScenario(ConsignmentTest):
     def _test_run(self, snapshot, parameters, t_end, dt_out, progress) -> TestRun:
         return swing_test(snapshot, parameters, t_end=t_end, dt_out=dt_out, progress=progress,
                           clamped_length=self.clamped_length, stick_model=self.stick_model,
-                          jaws=self.jaws, air_drag=self.air_drag)  # fmt: skip
+                          jaws=self.jaws, air_drag=self.air_drag,
+                          checkpoint=self.checkpoint)  # fmt: skip
 
     def responses(self, result: ScenarioResult) -> dict[str, Response]:
         x_rel, _, _ = swing_curve(result.record, self.clamped_length)
