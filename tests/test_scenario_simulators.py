@@ -69,6 +69,36 @@ def test_a_response_not_reached_fails_the_run_with_its_reason(snapshot_dir):
         drop({}, consignment=str(EXAMPLE), snapshot=str(snap), t_end_s=0.005)
 
 
+def test_a_campaign_run_of_a_test_keeps_a_checkpoint_until_it_has_ended(snapshot_dir, tmp_path):
+    # execute_run gives a resumable simulator its checkpoint: the 4 ms drop saves its run
+    # (then fails as not reached: no touch yet); a second call with the same file takes the
+    # run from it (a complete checkpoint: no stepping) to the same outcome; run_campaign
+    # removes the file once the run has ended, done or failed for good
+    from flexparcel.calibration import RunSpec, StudyStore, run_campaign
+    from flexparcel.calibration.execution import _checkpoint_path, execute_run
+
+    snap = snapshot_dir / "consignment_small" / "snapshot.npz"
+    setup = {"consignment": str(EXAMPLE), "snapshot": str(snap), "t_end_s": 0.004}
+    info = get_simulator("drop-horizontal")
+    assert info.func.resumable
+    path = tmp_path / "run.npz"
+    args = ("drop-horizontal", info.version, setup, {}, (), (), None, str(path))
+    first = execute_run(*args)
+    assert not first["ok"] and "did not touch the plate" in first["error"]
+    assert path.is_file()
+    again = execute_run(*args)
+    assert again["error"].splitlines()[0] == first["error"].splitlines()[0]
+    assert again["wall_s"] < first["wall_s"]
+    with StudyStore(tmp_path / "s.sqlite") as store:
+        spec = RunSpec("drop-horizontal", info.version, setup, {})
+        (key,) = store.add_design("design", "drop", [spec])
+        ckpt = _checkpoint_path(store, key)
+        assert ckpt.parent.name == "s.sqlite.runs"
+        run_campaign(store, [key], workers=0, progress=False)
+        assert store.get_runs([key])[0]["status"] == "failed"
+        assert ckpt.parent.is_dir() and not ckpt.exists()
+
+
 def test_conveyor_runs_a_study_scene_with_its_placements(snapshot_dir, tmp_path):
     """setup.scene: the scene file's belt, deflector and placements, names and all (the example
     design study's scene, 4 ms: the consignments have not reached the deflector yet)."""

@@ -29,7 +29,13 @@ to ``done`` (or ``failed`` after its retries):
   run's cost is the median wall time of the store's finished runs of its simulator and setup
   (:func:`~flexparcel.calibration.store.cost_key`), updated as runs finish; a run of a kind
   never finished has no known cost and starts (a job with a wall-time limit on a cluster,
-  a machine lent for some hours).
+  a machine lent for some hours);
+* a simulator marked ``resumable`` (an attribute of its function, e.g. the finite-element
+  tests of :mod:`flexparcel.scenarios.simulators`) gets a checkpoint path per run,
+  ``run_checkpoint``, in the folder ``STORE.runs`` beside the store: a run interrupted by
+  a kill or a crash resumes from its last save in the next campaign instead of starting
+  over. The file goes once the run is done or has failed for good. (Such a checkpoint holds
+  the run's frames so far: tens of MB at the paper's mesh; not for version control.)
 
 Executors: ``concurrent.futures.ProcessPoolExecutor`` (``workers`` processes, the default),
 ``dask.distributed`` (``scheduler`` = the address of a running scheduler; workers need flexparcel
@@ -154,8 +160,10 @@ def execute_run(
     expect: Sequence[str] = (),
     modules: Sequence[str] = (),
     threads: int | None = None,
+    checkpoint: str | None = None,
 ) -> dict:
     """Run one simulation; executed in a worker. Never raises for simulator errors.
+    ``checkpoint``: the run's checkpoint path, given to a ``resumable`` simulator.
 
     Returns ``{"ok": True, "responses": {...}, ...}`` or ``{"ok": False, "error": text, ...}``,
     with ``wall_s`` [s], ``worker`` (``host:pid``) and ``code_version``.
@@ -180,8 +188,11 @@ def execute_run(
                 limiter = threadpool_limits(threads)
             except ImportError:  # pragma: no cover - threadpoolctl ships with scikit-learn
                 limiter = None
+        extra = {}
+        if checkpoint is not None and getattr(info.func, "resumable", False):
+            extra["run_checkpoint"] = checkpoint
         try:
-            raw = info.func(dict(params), **dict(setup))
+            raw = info.func(dict(params), **extra, **dict(setup))
         finally:
             if limiter is not None:
                 limiter.restore_original_limits()
@@ -379,6 +390,7 @@ def run_campaign(
                             tuple(expect.get(key, ())),
                             tuple(modules),
                             run_threads,
+                            str(_checkpoint_path(store, key)),
                         )
                     except Exception:  # the pool broke between two submissions
                         store.mark_pending(key)
@@ -408,6 +420,7 @@ def run_campaign(
                         continue
                     suspects.discard(key)
                     if outcome["ok"]:
+                        _checkpoint_path(store, key).unlink(missing_ok=True)
                         walls.setdefault(cost_key(rows[key]), []).append(outcome["wall_s"])
                         store.mark_done(
                             key,
@@ -426,6 +439,8 @@ def run_campaign(
                         wall_s=outcome.get("wall_s"),
                         worker=outcome.get("worker", ""),
                     )
+                    # a failed attempt starts its retry over (its checkpoint may be the cause)
+                    _checkpoint_path(store, key).unlink(missing_ok=True)
                     again = store.get_runs([key])[0]["attempts"] < budget[key]
                     if again and not not_retried(outcome["error"]):
                         queue.append(key)
@@ -447,6 +462,11 @@ def run_campaign(
     if drain.requested and queue:
         raise CampaignDrained(len(queue), drain.finished, drain.reason)
     return report
+
+
+def _checkpoint_path(store: StudyStore, key: str):
+    """Where run ``key`` of ``store`` keeps its checkpoint: ``STORE.runs/KEY.npz``."""
+    return store.path.with_name(store.path.name + ".runs") / f"{key[:32]}.npz"
 
 
 def _ends_after(deadline: float | None, walls: list[float] | None) -> str:

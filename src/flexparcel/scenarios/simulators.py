@@ -110,7 +110,9 @@ def _check_parameters(name: str, scenario, params: Mapping[str, float]) -> None:
         )
 
 
-def _run(name: str, params: Mapping[str, float], setup: Mapping[str, object]) -> dict:
+def _run(
+    name: str, params: Mapping[str, float], setup: Mapping[str, object], checkpoint=None
+) -> dict:
     from flexparcel.scenarios.registry import get_scenario
 
     _check_setup(name, setup, _SETUP)
@@ -119,7 +121,7 @@ def _run(name: str, params: Mapping[str, float], setup: Mapping[str, object]) ->
     options = {k: setup[k] for k in ("air_drag", "membrane") if k in setup}
     if "air_drag" in options:
         options["air_drag"] = float(options["air_drag"])
-    scenario = get_scenario(name, **options)
+    scenario = get_scenario(name, checkpoint=checkpoint, **options)
     _check_parameters(name, scenario, params)
     scenario.resolve(dict(params))  # values against their ranges, before any assembly
     snap = scenario_snapshot(
@@ -149,22 +151,35 @@ def _consignment_of(snapshot: object) -> str:
     return load_snapshot(str(snapshot)).build.spec.id
 
 
-def swing(params: Mapping[str, float], **setup: object) -> dict[str, float]:
-    """The paper's swing test: first and second swing [mm]."""
-    return _run("swing", params, setup)
+def swing(
+    params: Mapping[str, float], run_checkpoint: str | None = None, **setup: object
+) -> dict[str, float]:
+    """The paper's swing test: first and second swing [mm]. ``run_checkpoint``: a ``.npz``
+    the run saves itself to and resumes from (a campaign gives one per run, see
+    :mod:`flexparcel.calibration.execution`); not part of the run's identity."""
+    return _run("swing", params, setup, run_checkpoint)
 
 
-def drop_vertical(params: Mapping[str, float], **setup: object) -> dict[str, float]:
+def drop_vertical(
+    params: Mapping[str, float], run_checkpoint: str | None = None, **setup: object
+) -> dict[str, float]:
     """The paper's vertical drop (standing on its edge, 200 mm): rebound (the camera's
-    clearance) and centre-of-mass rise [mm] (see :mod:`flexparcel.scenarios.drop`)."""
-    return _run("drop-vertical", params, setup)
+    clearance) and centre-of-mass rise [mm] (see :mod:`flexparcel.scenarios.drop`);
+    ``run_checkpoint`` as for :func:`swing`."""
+    return _run("drop-vertical", params, setup, run_checkpoint)
 
 
-def drop_horizontal(params: Mapping[str, float], **setup: object) -> dict[str, float]:
+def drop_horizontal(
+    params: Mapping[str, float], run_checkpoint: str | None = None, **setup: object
+) -> dict[str, float]:
     """The paper's horizontal drop (lying flat, 200 mm): rebound (the camera's
-    clearance) and centre-of-mass rise [mm]
-    (see :mod:`flexparcel.scenarios.drop`)."""
-    return _run("drop-horizontal", params, setup)
+    clearance) and centre-of-mass rise [mm] (see :mod:`flexparcel.scenarios.drop`);
+    ``run_checkpoint`` as for :func:`swing`."""
+    return _run("drop-horizontal", params, setup, run_checkpoint)
+
+
+for _f in (swing, drop_vertical, drop_horizontal):
+    _f.resumable = True  # takes run_checkpoint (read by flexparcel.calibration.execution)
 
 
 def conveyor(params: Mapping[str, float], **setup: object) -> dict[str, float]:
