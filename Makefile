@@ -16,12 +16,13 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/flexparcel demo --element-size 25 --out $(OUT)/demo
 
-# one process: on two (pytest-xdist) each compiled the numba kernels again, and a fresh
-# clone's suite took 802 s against 680 s on one; --durations prints the slowest tests
+# two processes (pytest-xdist), a test file at a time each, so that a module's fixtures are
+# built once; each process compiles the numba kernels it needs (about 2 min of CPU on a fresh
+# clone). --durations prints the slowest tests
 test: $(STAMP)
 	$(BIN)/ruff check src tests examples
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
-	$(BIN)/python -m pytest -q --durations=15
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=15
 
 slow: $(STAMP)
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 \
