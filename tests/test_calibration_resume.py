@@ -225,6 +225,26 @@ def test_time_limit_starts_no_run_that_would_end_after_it(tmp_path):
         Study(study, time_limit_s=0.0)
 
 
+def test_time_limit_takes_a_stated_cost_for_a_kind_never_run(tmp_path, capsys):
+    # estimated_run_s stands in for the cost of a kind of run with no finished run yet: with
+    # one of 10 s and a limit of 5 s not even the first run starts
+    from flexparcel.calibration import CampaignDrained
+
+    log = tmp_path / "calls.log"
+    study = write_study(tmp_path, setup=f'delay_s = {DELAY_S}, log_file = "{log}"', runs=N_RUNS)
+    text = study.read_text().replace(
+        f"design = {{ runs = {N_RUNS} }}\ntargets = {{ first_swing_mm",
+        f"design = {{ runs = {N_RUNS} }}\nestimated_run_s = 10\ntargets = {{ first_swing_mm",
+    )
+    assert "estimated_run_s = 10" in text
+    study.write_text(text)
+    with Study(study, workers=0, progress=False, time_limit_s=5.0) as st:
+        with pytest.raises(CampaignDrained, match="drained at the time limit.* 24 left"):
+            st.design()
+    assert "the next run takes about 10 s, 5 s are left" in capsys.readouterr().err
+    assert read_log(log) == ({}, [])
+
+
 @pytest.mark.parametrize(
     "text, seconds",
     [

@@ -27,9 +27,9 @@ to ``done`` (or ``failed`` after its retries):
   paper's mesh can take the better part of an hour);
 * a ``deadline`` drains it the same way before the first run that would end after it: a
   run's cost is the median wall time of the store's finished runs of its simulator and setup
-  (:func:`~flexparcel.calibration.store.cost_key`), updated as runs finish; a run of a kind
-  never finished has no known cost and starts (a job with a wall-time limit on a cluster,
-  a machine lent for some hours);
+  (:func:`~flexparcel.calibration.store.cost_key`), updated as runs finish, else its stated
+  cost (``stated_costs``: a study's ``estimated_run_s``); a run of a kind with neither
+  starts (a job with a wall-time limit on a cluster, a machine lent for some hours);
 * a simulator marked ``resumable`` (an attribute of its function, e.g. the finite-element
   tests of :mod:`flexparcel.scenarios.simulators`) gets a checkpoint path per run,
   ``run_checkpoint``, in the folder ``STORE.runs`` beside the store: a run interrupted by
@@ -293,6 +293,7 @@ def run_campaign(
     progress: bool = True,
     desc: str = "runs",
     deadline: float | None = None,
+    stated_costs: Mapping[tuple[str, str], float] | None = None,
 ) -> CampaignReport:
     """Execute the runs ``keys`` of ``store`` that are not done yet.
 
@@ -316,6 +317,9 @@ def run_campaign(
     deadline:
         ``time.time()`` [s] by which the runs started must have ended (see the module
         docstring); None: no limit.
+    stated_costs:
+        Cost [s] of a kind of run (:func:`~flexparcel.calibration.store.cost_key`) that has
+        no finished run in the store yet (a study's ``estimated_run_s``).
     """
     if retries < 0:
         raise ValueError(f"retries must be >= 0, got {retries}")
@@ -358,6 +362,7 @@ def run_campaign(
         run_threads = None if label == "serial" else threads
         drain = _Drain()
         walls = store.wall_times() if deadline is not None else {}
+        stated = dict(stated_costs or {})
         try:
             drain.start()
             while (queue and not drain.requested) or in_flight:
@@ -373,7 +378,9 @@ def run_campaign(
                 limit = 1 if suspects else max_in_flight
                 while not drain.requested and not pool_broken and queue and len(in_flight) < limit:
                     key = _next_run(queue, suspects)
-                    late = _ends_after(deadline, walls.get(cost_key(rows[key])))
+                    kind = cost_key(rows[key])
+                    cost = walls.get(kind) or ([stated[kind]] if kind in stated else None)
+                    late = _ends_after(deadline, cost)
                     if late:
                         queue.appendleft(key)
                         drain.request(late, "at the time limit")

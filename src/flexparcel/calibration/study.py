@@ -907,9 +907,25 @@ class Study:
             progress=self.progress,
             desc=label,
             deadline=self.deadline,
+            stated_costs=self._stated_costs(),
         )
         self.campaigns[label] = rep
         return rep
+
+    def _stated_costs(self) -> dict[tuple[str, str], float]:
+        """The experiments' ``estimated_run_s`` [s] by :func:`cost_key` of each level's setup:
+        the cost of a kind of run not finished yet, for the time limit."""
+        c = self.config
+        out = {}
+        for exp in c.experiments.values():
+            for level in ("low", "high") if c.fidelity is not None else (None,):
+                stated = exp.estimated_run_s
+                if isinstance(stated, Mapping):
+                    stated = stated.get(level)
+                if stated is not None:
+                    run = {"simulator": exp.simulator, "setup": c.setup_of(exp.name, level)}
+                    out[cost_key(run)] = float(stated)
+        return out
 
     def _done_rows(self, stage: str, exp: ExperimentConfig, limit: int | None = None):
         keys = self.store.design_keys(stage, exp.name)
