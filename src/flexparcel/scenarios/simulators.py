@@ -151,35 +151,34 @@ def _consignment_of(snapshot: object) -> str:
     return load_snapshot(str(snapshot)).build.spec.id
 
 
-def swing(
-    params: Mapping[str, float], run_checkpoint: str | None = None, **setup: object
-) -> dict[str, float]:
-    """The paper's swing test: first and second swing [mm]. ``run_checkpoint``: a ``.npz``
-    the run saves itself to and resumes from (a campaign gives one per run, see
-    :mod:`flexparcel.calibration.execution`); not part of the run's identity."""
-    return _run("swing", params, setup, run_checkpoint)
+def _test_simulator(name: str, what: str):
+    """The simulator of the consignment test ``name``: ``f(params, run_checkpoint=None,
+    **setup) -> {response: mm}``; ``run_checkpoint`` is a ``.npz`` the run saves itself to and
+    resumes from (a campaign gives one per run, see :mod:`flexparcel.calibration.execution`),
+    not part of the run's identity."""
+
+    def simulator(
+        params: Mapping[str, float], run_checkpoint: str | None = None, **setup: object
+    ) -> dict[str, float]:
+        return _run(name, params, setup, run_checkpoint)
+
+    simulator.__name__ = simulator.__qualname__ = name.replace("-", "_")
+    simulator.__doc__ = f"{what} ``run_checkpoint``: see :func:`_test_simulator`."
+    simulator.resumable = True  # takes run_checkpoint (read by flexparcel.calibration.execution)
+    return simulator
 
 
-def drop_vertical(
-    params: Mapping[str, float], run_checkpoint: str | None = None, **setup: object
-) -> dict[str, float]:
-    """The paper's vertical drop (standing on its edge, 200 mm): rebound (the camera's
-    clearance) and centre-of-mass rise [mm] (see :mod:`flexparcel.scenarios.drop`);
-    ``run_checkpoint`` as for :func:`swing`."""
-    return _run("drop-vertical", params, setup, run_checkpoint)
-
-
-def drop_horizontal(
-    params: Mapping[str, float], run_checkpoint: str | None = None, **setup: object
-) -> dict[str, float]:
-    """The paper's horizontal drop (lying flat, 200 mm): rebound (the camera's
-    clearance) and centre-of-mass rise [mm] (see :mod:`flexparcel.scenarios.drop`);
-    ``run_checkpoint`` as for :func:`swing`."""
-    return _run("drop-horizontal", params, setup, run_checkpoint)
-
-
-for _f in (swing, drop_vertical, drop_horizontal):
-    _f.resumable = True  # takes run_checkpoint (read by flexparcel.calibration.execution)
+swing = _test_simulator("swing", "The paper's swing test: first and second swing [mm].")
+drop_vertical = _test_simulator(
+    "drop-vertical",
+    "The paper's vertical drop (standing on its edge, 200 mm): rebound (the camera's "
+    "clearance) and centre-of-mass rise [mm] (see :mod:`flexparcel.scenarios.drop`).",
+)
+drop_horizontal = _test_simulator(
+    "drop-horizontal",
+    "The paper's horizontal drop (lying flat, 200 mm): rebound (the camera's clearance) and "
+    "centre-of-mass rise [mm] (see :mod:`flexparcel.scenarios.drop`).",
+)
 
 
 def conveyor(params: Mapping[str, float], **setup: object) -> dict[str, float]:
