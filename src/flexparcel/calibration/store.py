@@ -149,7 +149,7 @@ def _dumps(obj) -> str:
 def cost_key(run: Mapping) -> tuple[str, str]:
     """What sets a run's cost: its simulator and setup (the fidelity level's element size,
     the simulated time...), from a store row or anything with those two fields."""
-    return str(run["simulator"]), json.dumps(run["setup"], sort_keys=True)
+    return str(run["simulator"]), _dumps(run["setup"])
 
 
 class StudyStore:

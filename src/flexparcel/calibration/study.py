@@ -812,6 +812,15 @@ def _fingerprint(obj) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True).encode()).hexdigest()[:16]
 
 
+def _stated_cost(exp: ExperimentConfig, level: str | None) -> float | None:
+    """The experiment's ``estimated_run_s`` [s] at fidelity ``level`` (one number for all
+    levels, or a table by level), or None."""
+    stated = exp.estimated_run_s
+    if isinstance(stated, Mapping):
+        stated = stated.get(level)
+    return None if stated is None else float(stated)
+
+
 class Study:
     """The calibration pipeline of one study file over its store.
 
@@ -919,9 +928,7 @@ class Study:
         out = {}
         for exp in c.experiments.values():
             for level in ("low", "high") if c.fidelity is not None else (None,):
-                stated = exp.estimated_run_s
-                if isinstance(stated, Mapping):
-                    stated = stated.get(level)
+                stated = _stated_cost(exp, level)
                 if stated is not None:
                     run = {"simulator": exp.simulator, "setup": c.setup_of(exp.name, level)}
                     out[cost_key(run)] = float(stated)
@@ -1373,9 +1380,7 @@ class Study:
             w = walls.get(cost_key(run))
             if w:
                 return float(np.median(w)), f"measured ({len(w)} runs in the store)"
-            stated = exp.estimated_run_s
-            if isinstance(stated, Mapping):
-                stated = stated.get(level)
+            stated = _stated_cost(exp, level)
             if stated is not None:
                 return stated, "stated in the study (estimated_run_s)"
             return None, "unknown \u2014 run one"

@@ -20,6 +20,7 @@ and are recorded, and the command exits with status 75; the same command goes on
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 __all__ = ["register", "run"]
@@ -118,30 +119,19 @@ def _runs(items: list[str] | None) -> dict[str, int]:
     return out
 
 
-_UNITS_S = {"h": 3600.0, "m": 60.0, "s": 1.0}
+_NUMBER = r"\d+(?:\.\d*)?"
+_DURATION = re.compile(rf"(?P<n>{_NUMBER})|(?:(?P<h>{_NUMBER})h)?(?:(?P<m>{_NUMBER})m)?"
+                       rf"(?:(?P<s>{_NUMBER})s)?")  # fmt: skip
 
 
 def parse_duration(text: str) -> float:
-    """Seconds in ``text``: a number of seconds, or amounts with units h, m, s (``2h``,
-    ``1h30m``, ``90m``, ``45s``); > 0, else a ValueError naming ``--time-limit``."""
-    t = text.strip().lower()
-    total, number = 0.0, ""
-    try:
-        if t and t.replace(".", "", 1).isdigit():
-            total = float(t)
-        else:
-            for ch in t:
-                if ch.isdigit() or ch == ".":
-                    number += ch
-                elif ch in _UNITS_S and number:
-                    total += float(number) * _UNITS_S[ch]
-                    number = ""
-                else:
-                    raise ValueError
-            if number:
-                raise ValueError
-    except ValueError:
-        total = 0.0
+    """Seconds in ``text``: amounts in the order h, m, s (``2h``, ``1h30m``, ``90m``, ``45s``)
+    or a number of seconds; > 0, else a ValueError naming ``--time-limit``."""
+    match = _DURATION.fullmatch(text.strip().lower())
+    total = 0.0
+    if match:
+        total = sum(float(v) * f for v, f in zip(match.group("h", "m", "s", "n"),
+                                                (3600, 60, 1, 1), strict=True) if v)  # fmt: skip
     if not total > 0.0:
         raise ValueError(
             f"--time-limit {text!r}: expected a duration > 0, e.g. 2h, 90m, 1h30m or 600 (s)"
